@@ -1,0 +1,374 @@
+"""``pasta replay RUN.mcap``: print a run's timeline, export frames, or re-simulate and verify it.
+
+The CLI registers this module as a subcommand through :func:`add_arguments` and :func:`run`.
+
+Exit codes: 0 success; 1 ``--verify`` found a deviation above ``--tolerance`` (or could not
+verify); 2 the file could not be read (not MCAP, corrupt, truncated without ``--recover``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Any, Callable, TextIO
+
+import numpy as np
+
+from pasta.io.errors import McapFormatError, McapTruncatedError
+from pasta.io.run_log import ACTIONS, DOUGH, FINAL_STATE, INITIAL_STATE, METRICS, PLAN, SIM_CONFIG, STEP, TOOLS
+from pasta.io.run_reader import RunReader
+from pasta.io.schemas import LOG_SCHEMA, POINT_CLOUD_SCHEMA
+
+EXIT_OK, EXIT_VERIFY_FAILED, EXIT_BAD_FILE = 0, 1, 2
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the ``replay`` options to ``parser``."""
+    parser.add_argument("run_file", metavar="RUN.mcap", help="run file written by pasta.io.RunLogger")
+    parser.add_argument(
+        "--topics",
+        nargs="+",
+        action="extend",
+        metavar="TOPIC",
+        help="only these topics (space or comma separated) in the timeline and the export",
+    )
+    parser.add_argument("--export", metavar="DIR", help="write PNG frames (top and side views) and a GIF per cloud topic")
+    parser.add_argument("--every", type=int, default=1, metavar="K", help="export every K-th cloud (default 1)")
+    parser.add_argument("--max-frames", type=int, default=300, metavar="N", help="export at most N frames per topic")
+    parser.add_argument("--fps", type=float, default=10.0, help="GIF frame rate (default 10)")
+    parser.add_argument("--up-axis", choices=("x", "y", "z"), default="y", help="world up axis for the views (default y)")
+    parser.add_argument("--recover", action="store_true", help="read a truncated file: every complete chunk before the cut")
+    parser.add_argument(
+        "--verify",
+        action="store_true",
+        help=f"restore {INITIAL_STATE}, re-apply {ACTIONS} in the simulator and compare the final dough",
+    )
+    parser.add_argument("--tolerance", type=float, default=1e-5, help="max allowed deviation for --verify (default 1e-5)")
+
+
+def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
+    """Execute ``pasta replay`` with parsed ``args``; returns the exit code."""
+    out = out or sys.stdout
+    err = sys.stderr
+    topics = _split_topics(args.topics)
+    try:
+        reader = RunReader(args.run_file, recover=args.recover)
+    except McapTruncatedError as e:
+        print(f"error: {e}", file=err)
+        return EXIT_BAD_FILE
+    except McapFormatError as e:
+        print(f"error: {e}", file=err)
+        return EXIT_BAD_FILE
+    with reader:
+        try:
+            if reader.recover and not reader.complete:
+                n = sum(i.count for i in reader.topic_info().values())
+                print(f"warning: recovered {n} messages from a damaged file; {reader.recover_error}", file=err)
+            print_timeline(reader, topics, out)
+            if args.export:
+                written = export_frames(
+                    reader, Path(args.export), topics, every=args.every, max_frames=args.max_frames,
+                    fps=args.fps, up_axis=args.up_axis,
+                )
+                for p in written:
+                    print(f"wrote {p}", file=out)
+            if args.verify:
+                ok, dev = verify_run(reader, args.tolerance, out)
+                return EXIT_OK if ok else EXIT_VERIFY_FAILED
+        except McapFormatError as e:
+            print(f"error: {e}", file=err)
+            return EXIT_BAD_FILE
+    return EXIT_OK
+
+
+def _split_topics(values: list[str] | None) -> list[str] | None:
+    if not values:
+        return None
+    out: list[str] = []
+    for v in values:
+        out += [t for t in v.split(",") if t]
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# timeline
+
+
+def _secs(t_ns: int) -> str:
+    return f"{t_ns / 1e9:.3f}s"
+
+
+def _compact(obj: Any, limit: int = 160) -> str:
+    text = json.dumps(obj, separators=(", ", ": "))
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def _fmt_value(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return json.dumps(v) if not isinstance(v, str) else v
+
+
+def _fmt_plan(plan: dict[str, Any]) -> str:
+    parts = []
+    if isinstance(plan.get("skills"), list):
+        parts.append(" -> ".join(str(s) for s in plan["skills"]))
+    for key in ("score", "cost"):
+        if isinstance(plan.get(key), (int, float)):
+            parts.append(f"{key}={_fmt_value(plan[key])}")
+    rest = {k: v for k, v in plan.items() if k not in ("skills", "score", "cost")}
+    if rest:
+        parts.append(_compact(rest, 120))
+    return "  ".join(parts) if parts else _compact(plan)
+
+
+def print_timeline(reader: RunReader, topics: list[str] | None, out: TextIO, max_log_lines: int = 50) -> None:
+    """Print the topics with counts, run metadata, the plan, per-step results, final metrics and
+    log lines (restricted to ``topics`` when given)."""
+    info = reader.topic_info()
+    shown = [t for t in info if topics is None or t in topics]
+    status = "complete" if reader.complete else "RECOVERED (truncated)"
+    print(f"run: {reader.path} ({status})", file=out)
+    tr = reader.time_range()
+    total = sum(i.count for i in info.values())
+    span = f"{_secs(tr[0])} .. {_secs(tr[1])}" if tr else "-"
+    print(f"writer: {reader.library or '?'}   messages: {total}   time: {span}", file=out)
+    meta = reader.metadata()
+    if meta:
+        print("metadata: " + ", ".join(f"{k}={v}" for k, v in sorted(meta.items())), file=out)
+    names = reader.attachment_names()
+    if names:
+        print("attachments: " + ", ".join(names), file=out)
+    if topics is not None:
+        missing = [t for t in topics if t not in info]
+        if missing:
+            print("not in file: " + ", ".join(missing), file=out)
+    print("topics:", file=out)
+    width = max((len(t) for t in shown), default=5)
+    for t in shown:
+        i = info[t]
+        print(f"  {t:<{width}}  {i.schema_name:<24} {i.count:>7}", file=out)
+
+    if PLAN in shown:
+        print("plan:", file=out)
+        for t, plan in reader.messages(PLAN):
+            print(f"  [{_secs(t)}] {_fmt_plan(plan) if isinstance(plan, dict) else plan}", file=out)
+    if STEP in shown:
+        print("steps:", file=out)
+        for t, step in reader.messages(STEP):
+            if isinstance(step, dict):
+                head = f"step {step.get('step', '?')}"
+                if "skill" in step:
+                    head += f" {step['skill']}"
+                rest = {k: v for k, v in step.items() if k not in ("step", "skill")}
+                body = "  ".join(f"{k}={_fmt_value(v)}" for k, v in rest.items())
+                print(f"  [{_secs(t)}] {head}  {body}".rstrip(), file=out)
+    if METRICS in shown:
+        last = reader.last(METRICS)
+        if last is not None:
+            t, metrics = last
+            body = "  ".join(f"{k}={_fmt_value(v)}" for k, v in metrics.items()) if isinstance(metrics, dict) else str(metrics)
+            print(f"final metrics [{_secs(t)}]: {body}", file=out)
+    log_topics = [t for t in shown if info[t].schema_name == LOG_SCHEMA]
+    if log_topics:
+        print("log:", file=out)
+        n = 0
+        for rec in reader.iter_messages(log_topics, time_order=True):
+            n += 1
+            if n <= max_log_lines:
+                e = rec.value
+                print(f"  [{_secs(rec.t_ns)}] {e.level.upper():<7} {e.text}", file=out)
+        if n > max_log_lines:
+            print(f"  ... {n - max_log_lines} more log lines", file=out)
+
+
+# ---------------------------------------------------------------------------------------------
+# export
+
+
+def _slug(topic: str) -> str:
+    s = "".join(c if c.isalnum() or c in "-_" else "_" for c in topic.strip("/"))
+    return s or "root"
+
+
+def _tool_track(reader: RunReader) -> list[tuple[int, list[Any]]]:
+    if TOOLS not in reader.topics():
+        return []
+    return list(reader.messages(TOOLS))
+
+
+def _tools_at(track: list[tuple[int, list[Any]]], t_ns: int) -> list[Any]:
+    best: list[Any] = []
+    for t, tools in track:
+        if t <= t_ns:
+            best = tools
+        else:
+            break
+    return best
+
+
+def export_frames(
+    reader: RunReader,
+    out_dir: Path,
+    topics: list[str] | None = None,
+    *,
+    every: int = 1,
+    max_frames: int = 300,
+    fps: float = 10.0,
+    up_axis: str = "y",
+) -> list[Path]:
+    """Render each point-cloud topic (default ``/dough``; with ``topics``, every cloud topic among
+    them) as PNG frames ``<topic>_<i>.png`` (top view and side view) plus ``<topic>.gif``.
+    Returns the written paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from PIL import Image
+
+    info = reader.topic_info()
+    clouds = [t for t, i in info.items() if i.schema_name == POINT_CLOUD_SCHEMA]
+    if topics is not None:
+        chosen = [t for t in clouds if t in topics]
+    else:
+        chosen = [DOUGH] if DOUGH in clouds else clouds
+    out_dir.mkdir(parents=True, exist_ok=True)
+    up = "xyz".index(up_axis)
+    horiz = [a for a in range(3) if a != up]  # top view: the two horizontal axes
+    names = "xyz"
+    track = _tool_track(reader)
+    written: list[Path] = []
+    for topic in chosen:
+        frames = []
+        for i, (t, pts, colors) in enumerate(reader.point_clouds(topic)):
+            if i % max(every, 1) == 0 and len(frames) < max_frames:
+                frames.append((t, pts, colors))
+        if not frames:
+            continue
+        allpts = np.concatenate([f[1] for f in frames if len(f[1])] or [np.zeros((1, 3), np.float32)])
+        finite = allpts[np.all(np.isfinite(allpts), axis=1)]
+        lo = finite.min(axis=0) if len(finite) else np.zeros(3)
+        hi = finite.max(axis=0) if len(finite) else np.ones(3)
+        pad = 0.05 * max(float((hi - lo).max()), 1e-6)
+        lo, hi = lo - pad, hi + pad
+        fig, (ax_top, ax_side) = plt.subplots(1, 2, figsize=(8, 4), dpi=80)
+        pngs = []
+        for k, (t, pts, colors) in enumerate(frames):
+            for ax in (ax_top, ax_side):
+                ax.clear()
+            if colors is not None:
+                c = colors.astype(np.float32) / 255.0
+                kw: dict[str, Any] = {"c": c}
+            else:
+                kw = {"c": pts[:, up], "cmap": "viridis", "vmin": lo[up], "vmax": hi[up]}
+            ax_top.scatter(pts[:, horiz[0]], pts[:, horiz[1]], s=2, linewidths=0, **kw)
+            ax_side.scatter(pts[:, horiz[0]], pts[:, up], s=2, linewidths=0, **kw)
+            for tool in _tools_at(track, t):
+                p = tool.position
+                ax_top.plot(p[horiz[0]], p[horiz[1]], "kx")
+                ax_top.annotate(tool.name, (p[horiz[0]], p[horiz[1]]), fontsize=7)
+                ax_side.plot(p[horiz[0]], p[up], "kx")
+            ax_top.set_title(f"top  {topic}  t={_secs(t)}", fontsize=9)
+            ax_side.set_title("side", fontsize=9)
+            ax_top.set_xlim(lo[horiz[0]], hi[horiz[0]])
+            ax_top.set_ylim(lo[horiz[1]], hi[horiz[1]])
+            ax_side.set_xlim(lo[horiz[0]], hi[horiz[0]])
+            ax_side.set_ylim(lo[up], hi[up])
+            ax_top.set_xlabel(names[horiz[0]])
+            ax_top.set_ylabel(names[horiz[1]])
+            ax_side.set_xlabel(names[horiz[0]])
+            ax_side.set_ylabel(names[up])
+            for ax in (ax_top, ax_side):
+                ax.set_aspect("equal", adjustable="box")
+            png = out_dir / f"{_slug(topic)}_{k:05d}.png"
+            fig.savefig(png)
+            pngs.append(png)
+        plt.close(fig)
+        images = [Image.open(p).convert("RGB") for p in pngs]
+        gif = out_dir / f"{_slug(topic)}.gif"
+        duration = max(int(round(1000.0 / max(fps, 0.1))), 20)
+        images[0].save(gif, save_all=True, append_images=images[1:], duration=duration, loop=0)
+        written += pngs + [gif]
+    return written
+
+
+# ---------------------------------------------------------------------------------------------
+# verify
+
+
+def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -> tuple[bool, float]:
+    """Restore ``initial_state.npz`` with the logged ``sim_config.json``, re-apply ``/actions`` in
+    order and compare the final particle positions with ``final_state.npz`` (or the last ``/dough``
+    cloud). Prints the maximum absolute deviation; returns ``(deviation <= tolerance, deviation)``."""
+    out = out or sys.stdout
+    say: Callable[[str], None] = lambda s: print(s, file=out)  # noqa: E731
+    names = reader.attachment_names()
+    for need in (INITIAL_STATE, SIM_CONFIG):
+        if need not in names:
+            say(f"verify: cannot verify, the run has no attachment {need!r} (has {names})")
+            return False, math.inf
+    if ACTIONS not in reader.topics():
+        say(f"verify: cannot verify, the run has no {ACTIONS} topic")
+        return False, math.inf
+
+    from pasta.sim import SimConfig, Simulator, SimState  # lazy: only verify needs the simulator
+
+    cfg = SimConfig(**json.loads(reader.attachment(SIM_CONFIG)))
+    state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))
+    sim = Simulator(cfg)
+    sim.set_state(state)
+    n_steps = 0
+    for _t, msg in reader.messages(ACTIONS):
+        if "set_tool_pose" in msg:
+            pose = dict(msg["set_tool_pose"])
+            name = pose.pop("name")
+            position = np.asarray(pose.pop("position"), dtype=np.float64)
+            sim.set_tool_pose(name, position, **pose)
+        elif "park_tool" in msg:
+            sim.park_tool(msg["park_tool"])
+        elif "actions" in msg:
+            sim.step({k: np.asarray(v, dtype=np.float64) for k, v in msg["actions"].items()})
+            n_steps += 1
+        elif "tool" in msg and "action" in msg:
+            sim.step({msg["tool"]: np.asarray(msg["action"], dtype=np.float64)})
+            n_steps += 1
+    final = np.asarray(sim.get_state().x, dtype=np.float64)
+
+    if FINAL_STATE in names:
+        ref = np.asarray(SimState.load(io.BytesIO(reader.attachment(FINAL_STATE))).x, dtype=np.float64)
+        source = FINAL_STATE
+        got = final
+    else:
+        last = reader.last(DOUGH) if DOUGH in reader.topics() else None
+        if last is None:
+            say(f"verify: cannot verify, the run has neither {FINAL_STATE!r} nor a {DOUGH} cloud")
+            return False, math.inf
+        ref = np.asarray(last[1], dtype=np.float64)
+        source = f"last {DOUGH} message"
+        got = final
+        if got.shape != ref.shape:
+            got = np.asarray(_observed_points(sim.observe()), dtype=np.float64)
+    if got.shape != ref.shape:
+        say(f"verify: shape mismatch: simulated {got.shape} vs logged {ref.shape} ({source})")
+        return False, math.inf
+    dev = float(np.max(np.abs(got - ref))) if got.size else 0.0
+    ok = dev <= tolerance
+    verdict = "OK" if ok else "FAILED"
+    say(f"verify: {n_steps} env steps re-simulated; max deviation {dev:.3e} vs {source} (tolerance {tolerance:g}): {verdict}")
+    return ok, dev
+
+
+def _observed_points(obs: Any) -> Any:
+    """The dough points of ``Simulator.observe()`` whatever its container (array, dict, object)."""
+    if isinstance(obs, dict):
+        for key in ("dough", "points", "x"):
+            if key in obs:
+                return obs[key]
+    for attr in ("dough", "points", "x"):
+        if hasattr(obs, attr):
+            return getattr(obs, attr)
+    return obs

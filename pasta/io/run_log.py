@@ -1,0 +1,293 @@
+"""Write one run to one MCAP file: :class:`RunLogger`.
+
+Every message is stamped with simulation time the caller passes (integer ns, e.g.
+``step_time_ns(env_step, dt)``); nothing in the file depends on the wall clock, so the same run
+gives byte-identical files. Chunks are zstd-compressed with chunk, data-section and summary CRCs.
+
+Shapes: ``points`` (N, 3) numeric, stored as float32; ``colors`` (N, 4) uint8 RGBA; entity lists are
+lists of (P_i, 3) arrays. See :mod:`pasta.io.schemas` for the byte layouts.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
+from mcap_protobuf.schema import build_file_descriptor_set
+
+from pasta.io import schemas as S
+from pasta.io.schemas import ToolPrimitive, _check_time
+
+LIBRARY = f"pasta.io {LIBRARY_IDENTIFIER}"
+
+# Well-known topics (callers may use others).
+DOUGH = "/dough"  # foxglove.PointCloud: observed dough
+GOAL = "/goal"  # foxglove.PointCloud: goal cloud
+ENTITIES = "/entities"  # foxglove.PointCloud: decomposition, one colour + `entity` id per entity
+SUBGOALS = "/plan/subgoals"  # foxglove.PointCloud: decoded sub-goal entities of a plan step
+TOOLS = "/tools"  # foxglove.SceneUpdate: tool primitives
+PLAN = "/plan"  # json pasta.Plan
+ACTIONS = "/actions"  # json pasta.Action, one per env step / teleport
+STEP = "/step"  # json pasta.StepResult
+METRICS = "/metrics"  # json pasta.Metrics
+PROGRESS = "/planner/progress"  # json pasta.PlannerProgress
+LOG = "/log"  # foxglove.Log
+
+# Well-known attachments.
+CONFIG_ATTACHMENT = "config.yaml"
+INITIAL_STATE = "initial_state.npz"
+FINAL_STATE = "final_state.npz"
+SIM_CONFIG = "sim_config.json"
+RUN_METADATA = "run"
+
+
+def flatten_metadata(data: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
+    """``{"seed": 3, "packages": {"numpy": "2.4"}}`` -> ``{"seed": "3", "packages.numpy": "2.4"}``."""
+    out: dict[str, str] = {}
+    for key, value in data.items():
+        if not isinstance(key, str):
+            raise TypeError(f"metadata keys must be strings, got {key!r}")
+        full = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out.update(flatten_metadata(value, full + "."))
+        elif isinstance(value, str):
+            out[full] = value
+        elif value is None or isinstance(value, (bool, int, float)):
+            out[full] = json.dumps(value)
+        else:
+            out[full] = str(value)
+    return out
+
+
+class RunLogger:
+    """Writer of one run file. Use as a context manager; the file is finished on exit, also when
+    the block raises.
+
+    >>> with RunLogger("runs/r1.mcap", config_yaml=cfg_yaml, metadata={"seed": 3}) as log:
+    ...     log.point_cloud("/dough", step_time_ns(0, dt), points)
+
+    ``path``: the file (parents are created, an existing file is replaced).
+    ``config_yaml``: resolved config text, stored as attachment ``config.yaml``.
+    ``metadata``: run facts (seed, package and plugin versions ...), nested mappings are flattened
+    with dotted keys and values turned into strings; stored as the metadata record ``"run"``.
+    ``chunk_size``: bytes of uncompressed messages per chunk; a crash loses at most the open chunk
+    (call :meth:`flush` to close it early).
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        config_yaml: str | None = None,
+        metadata: Mapping[str, Any] | None = None,
+        *,
+        chunk_size: int = 1024 * 1024,
+    ) -> None:
+        self.path = Path(path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._stream = open(self.path, "wb")
+        try:
+            self._writer = Writer(
+                self._stream,
+                chunk_size=chunk_size,
+                compression=CompressionType.ZSTD,
+                enable_crcs=True,
+                enable_data_crcs=True,
+            )
+            self._writer.start(profile="", library=LIBRARY)
+        except BaseException:
+            self._stream.close()
+            raise
+        self._schemas: dict[tuple[str, str], int] = {}  # (name, encoding) -> schema id
+        self._channels: dict[str, tuple[int, str]] = {}  # topic -> (channel id, schema name)
+        self._sequence: dict[int, int] = {}
+        self._attachments: set[str] = set()
+        self._metadata_names: set[str] = set()
+        self._closed = False
+        if metadata is not None:
+            self.add_metadata(RUN_METADATA, metadata)
+        if config_yaml is not None:
+            self.attach(CONFIG_ATTACHMENT, config_yaml.encode("utf-8"), "application/yaml")
+
+    # ---------------------------------------------------------------- lifecycle
+
+    def __enter__(self) -> "RunLogger":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def flush(self) -> None:
+        """Close the current chunk and flush it to the OS, bounding what a crash can lose."""
+        self._check_open()
+        self._writer.flush()
+
+    def close(self) -> None:
+        """Write the summary and footer and close the file (idempotent)."""
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._writer.finish()
+        finally:
+            self._stream.close()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def _check_open(self) -> None:
+        if self._closed:
+            raise ValueError(f"RunLogger for {self.path} is closed")
+
+    # ---------------------------------------------------------------- channels
+
+    def _schema_id(self, name: str, encoding: str, data: bytes) -> int:
+        key = (name, encoding)
+        if key not in self._schemas:
+            self._schemas[key] = self._writer.register_schema(name=name, encoding=encoding, data=data)
+        return self._schemas[key]
+
+    def _channel(self, topic: str, schema_name: str, make: Any) -> int:
+        """Channel id of ``topic``; ``make()`` -> (schema_encoding, schema_data, message_encoding)."""
+        if not isinstance(topic, str) or not topic:
+            raise ValueError(f"topic must be a non-empty string, got {topic!r}")
+        if topic in self._channels:
+            cid, existing = self._channels[topic]
+            if existing != schema_name:
+                raise ValueError(
+                    f"topic {topic!r} already carries {existing} messages, cannot log {schema_name}"
+                )
+            return cid
+        schema_encoding, schema_data, message_encoding = make()
+        sid = self._schema_id(schema_name, schema_encoding, schema_data)
+        cid = self._writer.register_channel(topic=topic, message_encoding=message_encoding, schema_id=sid)
+        self._channels[topic] = (cid, schema_name)
+        return cid
+
+    def _write(self, cid: int, t_ns: int, data: bytes) -> None:
+        seq = self._sequence.get(cid, 0)
+        self._sequence[cid] = seq + 1
+        self._writer.add_message(channel_id=cid, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq)
+
+    def _write_proto(self, topic: str, t_ns: int, msg: Any) -> None:
+        name = msg.DESCRIPTOR.full_name
+        cls = type(msg)
+
+        def make() -> tuple[str, bytes, str]:
+            fds = build_file_descriptor_set(cls).SerializeToString(deterministic=True)
+            return SchemaEncoding.Protobuf, fds, MessageEncoding.Protobuf
+
+        cid = self._channel(topic, name, make)
+        self._write(cid, t_ns, msg.SerializeToString(deterministic=True))
+
+    # ---------------------------------------------------------------- messages
+
+    def point_cloud(self, topic: str, t_ns: int, points: Any, colors: Any = None) -> None:
+        """Log ``points`` (N, 3) (stored as float32) with optional ``colors`` (N, 4) uint8 RGBA as a
+        ``foxglove.PointCloud`` in frame ``world``."""
+        self._check_open()
+        t = _check_time(t_ns)
+        self._write_proto(topic, t, S.encode_point_cloud(t, points, colors))
+
+    def entities(self, topic: str, t_ns: int, entities: Sequence[Any]) -> None:
+        """Log a decomposition: a list of (P_i, 3) clouds as ONE ``foxglove.PointCloud``, entity i
+        coloured with palette colour i and tagged with a uint32 ``entity`` field = i (Foxglove can
+        colour by that field too). Read back as the same list of float32 arrays."""
+        self._check_open()
+        t = _check_time(t_ns)
+        self._write_proto(topic, t, S.encode_entities(t, list(entities)))
+
+    def tools(self, topic: str, t_ns: int, tools: Sequence[ToolPrimitive]) -> None:
+        """Log tool poses as a ``foxglove.SceneUpdate`` (one entity per tool, id = tool name)."""
+        self._check_open()
+        t = _check_time(t_ns)
+        self._write_proto(topic, t, S.encode_tools(t, list(tools)))
+
+    def message(self, t_ns: int, level: int | str, text: str, *, name: str = "pasta", topic: str = LOG) -> None:
+        """Log a text line as ``foxglove.Log``; ``level`` is a name (``"info"``, ``"warning"`` ...),
+        a Foxglove level code 0-5 or a stdlib ``logging`` level (10-50)."""
+        self._check_open()
+        t = _check_time(t_ns)
+        self._write_proto(topic, t, S.encode_log(t, level, text, name))
+
+    def json(
+        self,
+        topic: str,
+        t_ns: int,
+        obj: Mapping[str, Any],
+        *,
+        schema: Mapping[str, Any] | None = None,
+    ) -> None:
+        """Log a JSON object. ``schema`` (a JSON object schema with a ``title``; the title is the
+        schema name) is used when the topic is first seen; default ``{"type": "object"}`` titled
+        ``pasta.json<topic>``. Numpy values are converted to lists/numbers, non-finite floats to null."""
+        self._check_open()
+        t = _check_time(t_ns)
+        data = S.encode_json(obj)
+        if schema is None:
+            schema = S.generic_schema("pasta.json" + topic.replace("/", "."))
+        name = str(schema.get("title") or "pasta.json" + topic.replace("/", "."))
+        cid = self._channel(topic, name, lambda: (SchemaEncoding.JSONSchema, S.schema_bytes(schema), MessageEncoding.JSON))
+        self._write(cid, t, data)
+
+    def plan(self, t_ns: int, plan: Mapping[str, Any], *, topic: str = PLAN) -> None:
+        """Log a plan (``{"skills": [...], "steps": [...], "score": ...}``; extra keys allowed)."""
+        self.json(topic, t_ns, plan, schema=S.PLAN_SCHEMA)
+
+    def metrics(self, t_ns: int, metrics: Mapping[str, Any], *, topic: str = METRICS) -> None:
+        """Log named scalar metrics (the last message of ``/metrics`` is the run's final result)."""
+        self.json(topic, t_ns, metrics, schema=S.METRICS_SCHEMA)
+
+    def step_result(self, t_ns: int, result: Mapping[str, Any], *, topic: str = STEP) -> None:
+        """Log the result of one plan step (``{"step": h, "skill": ..., "score": ...}``)."""
+        self.json(topic, t_ns, result, schema=S.STEP_SCHEMA)
+
+    def planner_progress(self, t_ns: int, progress: Mapping[str, Any], *, topic: str = PROGRESS) -> None:
+        """Log planner optimisation progress (``{"iteration": i, "best_score": ...}``)."""
+        self.json(topic, t_ns, progress, schema=S.PROGRESS_SCHEMA)
+
+    def action(self, t_ns: int, step: int, tool: str, action: Any, *, topic: str = ACTIONS) -> None:
+        """Log the action applied to ``tool`` at env step ``step`` (``action``: 1-D numbers, exactly
+        what was passed to the simulator, so ``pasta replay --verify`` can re-apply it)."""
+        self.json(topic, t_ns, {"step": int(step), "tool": tool, "action": action}, schema=S.ACTION_SCHEMA)
+
+    def set_tool_pose(
+        self, t_ns: int, step: int, name: str, position: Any, yaw: float = 0.0, *, topic: str = ACTIONS
+    ) -> None:
+        """Log a tool teleport (``Simulator.set_tool_pose(name, position, yaw=yaw)``)."""
+        pose = {"name": name, "position": position, "yaw": float(yaw)}
+        self.json(topic, t_ns, {"step": int(step), "set_tool_pose": pose}, schema=S.ACTION_SCHEMA)
+
+    def park_tool(self, t_ns: int, step: int, name: str, *, topic: str = ACTIONS) -> None:
+        """Log that ``name`` was parked (``Simulator.park_tool(name)``)."""
+        self.json(topic, t_ns, {"step": int(step), "park_tool": name}, schema=S.ACTION_SCHEMA)
+
+    # ---------------------------------------------------------------- attachments / metadata
+
+    def attach(self, name: str, data: bytes, media_type: str = "application/octet-stream", *, t_ns: int = 0) -> None:
+        """Store ``data`` as an attachment (e.g. ``initial_state.npz``); names are unique."""
+        self._check_open()
+        if not isinstance(data, (bytes, bytearray, memoryview)):
+            raise TypeError(f"attachment data must be bytes, got {type(data).__name__}")
+        if name in self._attachments:
+            raise ValueError(f"attachment {name!r} already written to {self.path}")
+        self._attachments.add(name)
+        t = _check_time(t_ns)
+        self._writer.add_attachment(create_time=t, log_time=t, name=name, media_type=media_type, data=bytes(data))
+
+    def attach_json(self, name: str, obj: Mapping[str, Any], *, t_ns: int = 0) -> None:
+        """Store a JSON object as an attachment (media type application/json), e.g. ``sim_config.json``."""
+        data = json.dumps(S.to_jsonable(obj), sort_keys=True, indent=1).encode("utf-8")
+        self.attach(name, data, "application/json", t_ns=t_ns)
+
+    def add_metadata(self, name: str, data: Mapping[str, Any]) -> None:
+        """Write an MCAP metadata record ``name`` (flattened to ``dict[str, str]``)."""
+        self._check_open()
+        if name in self._metadata_names:
+            raise ValueError(f"metadata record {name!r} already written to {self.path}")
+        self._metadata_names.add(name)
+        self._writer.add_metadata(name, flatten_metadata(data))

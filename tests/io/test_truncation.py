@@ -1,0 +1,87 @@
+"""Acceptance 3: a file cut in the middle gives a clear error; recover returns the messages before the cut."""
+
+import argparse
+
+import numpy as np
+import pytest
+
+from pasta.io import McapTruncatedError, RunLogger, RunReader
+from pasta.io import replay
+
+
+def _write(path, n=200):
+    rng = np.random.default_rng(1)
+    clouds = [rng.random((500, 3)).astype(np.float32) for _ in range(n)]
+    with RunLogger(path, config_yaml="a: 1\n", metadata={"seed": "1"}, chunk_size=16 * 1024) as log:
+        for i, c in enumerate(clouds):
+            log.point_cloud("/dough", i * 1000, c)
+            log.json("/actions", i * 1000, {"step": i, "tool": "knife", "action": [0.0, float(i), 0.0]})
+    return clouds
+
+
+@pytest.mark.parametrize("fraction", [0.5, 0.23, 0.9])
+def test_cut_file_clear_error_and_recover(tmp_path, fraction):
+    full = tmp_path / "full.mcap"
+    clouds = _write(full)
+    data = full.read_bytes()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[: int(len(data) * fraction)])
+
+    with pytest.raises(McapTruncatedError) as exc:
+        RunReader(cut)
+    text = str(exc.value)
+    assert "cut.mcap" in text and "truncated" in text and "--recover" in text
+
+    r = RunReader(cut, recover=True)
+    assert not r.complete and r.recover_error
+    got = list(r.messages("/dough"))
+    assert 0 < len(got) < len(clouds)
+    for k, (t, x) in enumerate(got):  # exactly the prefix, bitwise
+        assert t == k * 1000 and x.tobytes() == clouds[k].tobytes()
+    acts = list(r.messages("/actions"))
+    assert [a["step"] for _, a in acts] == list(range(len(acts)))
+    assert r.metadata() == {"seed": "1"}  # written before the first chunk
+    assert r.config() == "a: 1\n"
+
+
+def test_recover_on_complete_file_reads_everything(tmp_path):
+    p = tmp_path / "full.mcap"
+    clouds = _write(p, n=30)
+    r = RunReader(p, recover=True)
+    assert r.complete and r.recover_error is None
+    assert len(list(r.messages("/dough"))) == len(clouds) == r.count("/dough")
+
+
+def test_unfinished_writer_is_truncated(tmp_path):
+    p = tmp_path / "killed.mcap"
+    log = RunLogger(p, chunk_size=4096)
+    for i in range(50):
+        log.point_cloud("/dough", i, np.full((100, 3), i, np.float32))
+    log.flush()  # like a process killed after flushing: no summary, no footer
+    log._stream.flush()
+    with pytest.raises(McapTruncatedError):
+        RunReader(p)
+    assert len(list(RunReader(p, recover=True).messages("/dough"))) == 50
+    log.close()
+
+
+def _parse(argv):
+    parser = argparse.ArgumentParser(prog="pasta replay")
+    replay.add_arguments(parser)
+    return parser.parse_args(argv)
+
+
+def test_replay_cli_truncated(tmp_path, capsys):
+    full = tmp_path / "full.mcap"
+    _write(full)
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(full.read_bytes()[: full.stat().st_size // 2])
+
+    assert replay.run(_parse([str(cut)])) == replay.EXIT_BAD_FILE
+    err = capsys.readouterr().err
+    assert "truncated" in err and "--recover" in err and "Traceback" not in err
+
+    assert replay.run(_parse([str(cut), "--recover"])) == 0
+    cap = capsys.readouterr()
+    assert "RECOVERED" in cap.out and "/dough" in cap.out
+    assert "recovered" in cap.err
