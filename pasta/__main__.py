@@ -1,0 +1,5 @@
+import sys
+
+from pasta.cli import main
+
+sys.exit(main())

@@ -1,0 +1,41 @@
+"""The ``pasta`` command line. Each subcommand is a module of :mod:`pasta.commands` exposing
+``HELP``, ``add_arguments(parser)`` and ``run(args) -> int``; adding a module adds a command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import pkgutil
+import sys
+from collections.abc import Sequence
+
+import pasta.commands
+from pasta.core.errors import PastaError
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="pasta", description="Plan and execute multi-tool dough manipulation (PASTA).")
+    parser.add_argument("--version", action="version", version=f"pasta {pasta.__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for info in sorted(pkgutil.iter_modules(pasta.commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        module = importlib.import_module(f"pasta.commands.{info.name}")
+        cmd = sub.add_parser(info.name.replace("_", "-"), help=module.HELP, description=module.HELP)
+        module.add_arguments(cmd)
+        cmd.set_defaults(handler=module.run)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.handler(args) or 0)
+    except PastaError as exc:
+        print(f"pasta {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

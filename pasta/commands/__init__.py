@@ -1,0 +1,1 @@
+"""Subcommands of the ``pasta`` CLI, one module each (see :mod:`pasta.cli`)."""

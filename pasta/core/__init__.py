@@ -1,0 +1,51 @@
+"""pasta's vocabulary: the contracts plugins implement and the values they exchange.
+
+This package imports nothing else from pasta, and no heavy library at import time (torch is imported
+inside the functions that need it), so listing plugins stays cheap. Shapes are named in
+:mod:`pasta.core.shapes`.
+"""
+
+from pasta.core.config import PluginConfig
+from pasta.core.cost import CostModel
+from pasta.core.encoder import Encoder
+from pasta.core.errors import (
+    CardinalityError,
+    ConfigError,
+    InputError,
+    MissingComponentError,
+    PastaError,
+    PluginNotFoundError,
+    PluginValidationError,
+    SimulationError,
+)
+from pasta.core.matching import min_cost_matching
+from pasta.core.plan import Plan, PlanStep, kept_indices
+from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons
+from pasta.core.skill import Controller, Skill, SkillObservation, SkillSpec, ToolPose
+
+__all__ = [
+    "CardinalityError",
+    "ConfigError",
+    "Controller",
+    "CostModel",
+    "Encoder",
+    "InputError",
+    "MissingComponentError",
+    "PastaError",
+    "Plan",
+    "PlanStep",
+    "Planner",
+    "PlanningProblem",
+    "PluginConfig",
+    "PluginNotFoundError",
+    "PluginValidationError",
+    "SimulationError",
+    "Skill",
+    "SkillObservation",
+    "SkillSpec",
+    "ToolPose",
+    "check_skeleton",
+    "enumerate_skeletons",
+    "kept_indices",
+    "min_cost_matching",
+]

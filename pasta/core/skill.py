@@ -1,0 +1,204 @@
+"""The Skill contract: a tool behaviour that consumes ``N_k`` dough entities and produces ``M_k``.
+
+A skill bundles three roles, each filled by a later component and each optional until a call needs it:
+
+- cardinality and tool (:class:`SkillSpec`): known without importing torch or taichi, so the plugin
+  registry can list skills cheaply and the planner can enumerate skill sequences;
+- feasibility ``f_k(U_in (B, N, D), U_out (B, M, D)) -> (B,)`` in ``[0, 1]``: a learned set network
+  attached with :meth:`Skill.attach_feasibility`;
+- controllers that act in the simulator: the scripted ``expert`` (demonstrations and goals), the
+  point-cloud ``controller`` (heuristic) and the learned ``policy``, all behind :class:`Controller`.
+
+Calls whose component is missing raise :class:`~pasta.core.errors.MissingComponentError` naming it.
+"""
+
+from __future__ import annotations
+
+import re
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from pasta.core.errors import InputError, MissingComponentError, PluginValidationError
+
+if TYPE_CHECKING:
+    import numpy as np
+    import torch
+
+_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
+
+
+@dataclass(frozen=True)
+class SkillSpec:
+    """What the planner needs to know about a skill before any network exists.
+
+    Attributes:
+        name: registry name, lower case (``"cut"``).
+        n_in: ``N_k``, entities the skill consumes (>= 1).
+        n_out: ``M_k``, entities the skill produces (>= 1).
+        tool: simulator tool the skill drives (``"knife"``).
+        description: one line for ``pasta plugins``.
+    """
+
+    name: str
+    n_in: int
+    n_out: int
+    tool: str
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not _NAME.match(self.name):
+            raise PluginValidationError(
+                f"skill name {self.name!r} must be lower case letters, digits and '_', starting with a letter"
+            )
+        for field, value in (("n_in", self.n_in), ("n_out", self.n_out)):
+            if not isinstance(value, int) or isinstance(value, bool) or value < 1:
+                raise PluginValidationError(f"skill '{self.name}': {field} must be an integer >= 1, got {value!r}")
+        if not isinstance(self.tool, str) or not self.tool:
+            raise PluginValidationError(f"skill '{self.name}': tool must be a non-empty string, got {self.tool!r}")
+
+    @property
+    def delta(self) -> int:
+        """Change in the number of entities, ``M_k - N_k``."""
+        return self.n_out - self.n_in
+
+
+@dataclass
+class SkillObservation:
+    """What a controller sees at one environment step (all ``np.ndarray``, float32).
+
+    Attributes:
+        piece: ``(P, 3)`` points of the attended dough piece(s).
+        goal: ``(G, 3)`` points of the step's sub-goal (all produced entities together).
+        tool_points: ``(T, 3)`` surface points of the skill's tool.
+        tool_pose: ``(7,)`` tool position and unit quaternion (w, x, y, z).
+        scene: ``(S, 3)`` the whole observed dough, for controllers that must avoid other pieces.
+    """
+
+    piece: np.ndarray
+    goal: np.ndarray
+    tool_points: np.ndarray
+    tool_pose: np.ndarray
+    scene: np.ndarray | None = None
+
+
+@dataclass(frozen=True)
+class ToolPose:
+    """A tool placement: ``position`` (x, y, z) and rotation ``yaw`` about the vertical axis (radians)."""
+
+    position: tuple[float, float, float]
+    yaw: float = 0.0
+
+
+class Controller(ABC):
+    """Closed-loop driver of one skill execution: observation in, tool action ``(A,)`` and done out."""
+
+    def reset(self, obs: SkillObservation) -> None:  # noqa: B027 - optional hook
+        """Called once before the first :meth:`act` of an execution."""
+
+    @abstractmethod
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+        """Return the action ``(A,)`` in ``[-1, 1]`` and whether the skill is done."""
+
+
+class Skill:
+    """Base class of every skill plugin. Subclasses set :attr:`spec` and override the hooks they fill.
+
+    Args:
+        config: the skill's own settings (a dataclass instance or ``None``).
+    """
+
+    spec: ClassVar[SkillSpec]
+
+    def __init__(self, config: Any = None) -> None:
+        if not isinstance(getattr(type(self), "spec", None), SkillSpec):
+            raise PluginValidationError(f"{type(self).__name__} must define a class attribute `spec: SkillSpec`")
+        self.config = config
+        self.feasibility_model: Any = None
+        self.policy_model: Any = None
+
+    # -- identity ----------------------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    @property
+    def n_in(self) -> int:
+        return self.spec.n_in
+
+    @property
+    def n_out(self) -> int:
+        return self.spec.n_out
+
+    @property
+    def tool(self) -> str:
+        return self.spec.tool
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name}: {self.n_in} -> {self.n_out}, tool={self.tool})"
+
+    # -- learned components -------------------------------------------------------------------
+    def attach_feasibility(self, model: Any) -> None:
+        """Attach a feasibility network: a callable ``(U_in (B, N, D), U_out (B, M, D)) -> (B,)``."""
+        self.feasibility_model = model
+
+    def attach_policy(self, model: Any) -> None:
+        """Attach a learned policy network used by :meth:`policy`."""
+        self.policy_model = model
+
+    def feasibility(self, u_in: torch.Tensor, u_out: torch.Tensor) -> torch.Tensor:
+        """Probability that the skill turns entities ``u_in`` into ``u_out``.
+
+        Args:
+            u_in: ``(B, N, D)`` latents of the consumed entities, ``N = n_in``.
+            u_out: ``(B, M, D)`` latents of the produced entities, ``M = n_out``.
+
+        Returns:
+            ``(B,)`` values in ``[0, 1]``.
+        """
+        self._check_tuple(u_in, u_out)
+        if self.feasibility_model is None:
+            raise self._missing("feasibility predictor", "train one with `pasta train feasibility skill=NAME`")
+        return self.feasibility_model(u_in, u_out)
+
+    # -- acting in the simulator (filled by skill plugins) ------------------------------------
+    def approach_pose(self, piece: np.ndarray, goal: np.ndarray) -> ToolPose:
+        """Where to place the tool before executing on ``piece (P, 3)`` towards ``goal (G, 3)``."""
+        raise self._missing("approach pose", "the skill plugin does not define `approach_pose`")
+
+    def park_pose(self) -> ToolPose:
+        """Where the tool waits while other skills run."""
+        raise self._missing("parking pose", "the skill plugin does not define `park_pose`")
+
+    def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
+        """Random parameters of the scripted expert for ``piece (P, 3)`` (cut position, push target...)."""
+        raise self._missing("scripted expert", "the skill plugin does not define `sample_expert_params`")
+
+    def expert(self, params: dict[str, float]) -> Controller:
+        """Scripted expert with explicit parameters, used for demonstrations and goals."""
+        raise self._missing("scripted expert", "the skill plugin does not define `expert`")
+
+    def controller(self) -> Controller:
+        """Heuristic controller working from point clouds only (observed piece and sub-goal)."""
+        raise self._missing("heuristic controller", "the skill plugin does not define `controller`")
+
+    def policy(self) -> Controller:
+        """Learned point-cloud policy; needs :meth:`attach_policy`."""
+        raise self._missing("learned policy", "train one with `pasta train policy skill=NAME`")
+
+    # -- helpers ------------------------------------------------------------------------------
+    def _missing(self, what: str, fix: str) -> MissingComponentError:
+        return MissingComponentError(f"skill '{self.name}' has no {what}: {fix.replace('NAME', self.name)}")
+
+    def _check_tuple(self, u_in: Any, u_out: Any) -> None:
+        s_in, s_out = tuple(getattr(u_in, "shape", ())), tuple(getattr(u_out, "shape", ()))
+        if len(s_in) != 3 or len(s_out) != 3 or s_in[0] != s_out[0] or s_in[2] != s_out[2]:
+            raise InputError(
+                f"skill '{self.name}': feasibility expects U_in (B, {self.n_in}, D) and U_out (B, {self.n_out}, D), "
+                f"got {s_in} and {s_out}"
+            )
+        if s_in[1] != self.n_in or s_out[1] != self.n_out:
+            raise InputError(
+                f"skill '{self.name}' consumes {self.n_in} and produces {self.n_out} entities, "
+                f"got U_in with {s_in[1]} and U_out with {s_out[1]}"
+            )

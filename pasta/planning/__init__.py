@@ -1,0 +1,1 @@
+"""Planning machinery shared by the planner plugins (the batched latent plan optimiser)."""

@@ -1,0 +1,101 @@
+"""Roll a skill sequence forward in latent space and package the result as a :class:`~pasta.core.Plan`.
+
+Used by planners to report their best candidate and by the conformance checker to re-evaluate a plan
+with the problem's own models.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import torch
+
+from pasta.core import Plan, PlanningProblem, PlanStep, kept_indices
+from pasta.core.errors import InputError
+from pasta.core.plan import as_latents
+from pasta.planning.objective import plan_score
+
+
+@dataclass
+class Rollout:
+    """Result of :func:`rollout` for ``B`` candidates sharing one skeleton and attention.
+
+    Attributes:
+        feasibility: ``(B, H)`` per-step feasibility.
+        states: ``H`` tensors ``(B, K_h, D)``, the latent set after each step.
+        cost: ``(B,)`` set cost of the last state against the goal.
+    """
+
+    feasibility: torch.Tensor
+    states: list[torch.Tensor]
+    cost: torch.Tensor
+
+
+def rollout(
+    problem: PlanningProblem,
+    skeleton: Sequence[str],
+    attention: Sequence[Sequence[int]],
+    subgoals: Sequence[torch.Tensor],
+) -> Rollout:
+    """Apply ``skeleton`` to the observed set.
+
+    Args:
+        problem: the planning problem (models and sets).
+        skeleton: ``H`` skill names.
+        attention: per step, the indices of the consumed entities in the set before the step.
+        subgoals: per step, ``(B, M_h, D)`` latents of the produced entities.
+    """
+    if not (len(skeleton) == len(attention) == len(subgoals)):
+        raise InputError(f"skeleton, attention and subgoals must have one entry per step, got {len(skeleton)}, {len(attention)}, {len(subgoals)}")
+    skills = problem.skill_map
+    batch = subgoals[0].shape[0] if subgoals else 1
+    state = problem.obs.unsqueeze(0).expand(batch, -1, -1)
+    feas, states = [], []
+    for name, inputs, new in zip(skeleton, attention, subgoals):
+        kept = kept_indices(state.shape[1], inputs)
+        feas.append(skills[name].feasibility(state[:, list(inputs)], new))
+        state = torch.cat([new, state[:, list(kept)]], 1)
+        states.append(state)
+    goal = problem.goal.unsqueeze(0).expand(batch, -1, -1)
+    return Rollout(torch.stack(feas, -1), states, problem.cost.set_cost(state, goal))
+
+
+def build_plan(
+    problem: PlanningProblem,
+    skeleton: Sequence[str],
+    attention: Sequence[Sequence[int]],
+    subgoals: Sequence[torch.Tensor],
+    *,
+    planner: str,
+    cost_weight: float,
+    floor: float,
+    timings: dict[str, float] | None = None,
+    info: dict | None = None,
+) -> Plan:
+    """Evaluate one candidate (``subgoals`` as ``(M_h, D)`` tensors) and return it as a :class:`Plan`."""
+    with torch.no_grad():
+        batched = [problem.encoder.clamp(s.detach()).unsqueeze(0) for s in subgoals]
+        result = rollout(problem, skeleton, attention, batched)
+        score = plan_score(result.feasibility, result.cost, cost_weight=cost_weight, floor=floor)
+    steps = tuple(
+        PlanStep(
+            skill=name,
+            inputs=tuple(int(i) for i in inputs),
+            subgoal=as_latents(new[0]),
+            feasibility=float(result.feasibility[0, h]),
+            state=as_latents(result.states[h][0]),
+        )
+        for h, (name, inputs, new) in enumerate(zip(skeleton, attention, batched))
+    )
+    return Plan(
+        steps=steps,
+        initial=as_latents(problem.obs),
+        goal=as_latents(problem.goal),
+        final_cost=float(result.cost[0]),
+        score=float(score[0]),
+        planner=planner,
+        seed=problem.seed,
+        timings=dict(timings or {}),
+        info=dict(info or {}),
+    )

@@ -1,0 +1,144 @@
+"""Conformance checkers for plugins (in the spirit of Gymnasium's ``check_env``).
+
+Each ``check_*`` raises :class:`PluginConformanceError` naming the first broken rule, and returns
+quietly otherwise. :mod:`pasta.plugins.testing` wraps them in pytest contract classes.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import torch
+
+from pasta.core import (
+    CardinalityError,
+    Controller,
+    Encoder,
+    MissingComponentError,
+    Plan,
+    Planner,
+    PlanningProblem,
+    Skill,
+    SkillSpec,
+    check_skeleton,
+    kept_indices,
+)
+from pasta.core.errors import PastaError
+from pasta.planning.rollout import rollout
+
+
+class PluginConformanceError(PastaError, AssertionError):
+    """A plugin breaks its contract."""
+
+
+def _require(cond: bool, message: str) -> None:
+    if not cond:
+        raise PluginConformanceError(message)
+
+
+def check_skill(skill: Skill, *, latent_dim: int = 5, batch: int = 7, seed: int = 0) -> None:
+    """Check a skill's spec, feasibility shape/range/permutation invariance, and its hooks' errors.
+
+    Feasibility is only exercised when a model is attached (or the skill overrides ``feasibility``);
+    otherwise it must raise :class:`MissingComponentError` naming the skill.
+    """
+    _require(isinstance(skill, Skill), f"{skill!r} is not a pasta.core.Skill")
+    _require(isinstance(skill.spec, SkillSpec), f"{type(skill).__name__}.spec is not a SkillSpec")
+    gen = torch.Generator().manual_seed(seed)
+    u_in = torch.randn(batch, skill.n_in, latent_dim, generator=gen)
+    u_out = torch.randn(batch, skill.n_out, latent_dim, generator=gen)
+    try:
+        f = skill.feasibility(u_in, u_out)
+    except MissingComponentError as exc:
+        _require(skill.name in str(exc), f"skill '{skill.name}': MissingComponentError must name the skill, got {exc}")
+    else:
+        _require(tuple(f.shape) == (batch,), f"skill '{skill.name}': feasibility must return (B,) = ({batch},), got {tuple(f.shape)}")
+        _require(bool(((f >= 0) & (f <= 1)).all()), f"skill '{skill.name}': feasibility must lie in [0, 1]")
+        f_perm = skill.feasibility(u_in.flip(1), u_out.flip(1))
+        _require(torch.allclose(f, f_perm, atol=1e-5), f"skill '{skill.name}': feasibility must be invariant to entity order")
+    for hook in ("controller", "policy"):
+        try:
+            ctrl = getattr(skill, hook)()
+        except MissingComponentError:
+            continue
+        _require(isinstance(ctrl, Controller), f"skill '{skill.name}': {hook}() must return a pasta.core.Controller")
+
+
+def check_encoder(encoder: Encoder, *, num_points: int = 64, seed: int = 0) -> None:
+    """Check encode/decode/prior shapes, finiteness, and that ``clamp`` keeps ``t`` in the box."""
+    d = encoder.latent_dim
+    _require(d == encoder.z_dim + 3, f"encoder: latent_dim must be z_dim + 3, got {d}")
+    gen = torch.Generator().manual_seed(seed)
+    prior = encoder.sample_prior(4, gen)
+    _require(tuple(prior.shape) == (4, d), f"encoder: sample_prior(4) must be (4, {d}), got {tuple(prior.shape)}")
+    clouds = encoder.decode(prior, num_points)
+    _require(tuple(clouds.shape) == (4, num_points, 3), f"encoder: decode must give (K, P, 3), got {tuple(clouds.shape)}")
+    codes = encoder.encode(clouds)
+    _require(tuple(codes.shape) == (4, d), f"encoder: encode must give (K, D), got {tuple(codes.shape)}")
+    _require(bool(codes.isfinite().all()), "encoder: encode returned non-finite values")
+    far = encoder.clamp(prior + 100.0)
+    _require(bool((far[:, encoder.z_dim :] <= torch.tensor(encoder.t_high) + 1e-6).all()), "encoder: clamp must bound t")
+
+
+def check_plan(plan: Plan, problem: PlanningProblem, *, cost_weight: float | None = None, atol: float = 1e-4) -> None:
+    """Check a plan is well formed for ``problem`` and that its numbers match the problem's models."""
+    _require(isinstance(plan, Plan), f"planner returned {type(plan).__name__}, not a Plan")
+    skills = problem.skill_map
+    _require(all(n in skills for n in plan.skills), f"plan uses unknown skills {plan.skills}")
+    _require(len(plan.steps) == problem.horizon, f"plan has {len(plan.steps)} steps, horizon is {problem.horizon}")
+    try:
+        check_skeleton(plan.skills, [s.spec for s in problem.skills], len(problem.obs), len(problem.goal))
+    except CardinalityError as exc:
+        raise PluginConformanceError(f"plan skeleton is not cardinality-consistent: {exc}") from None
+    k, d = len(problem.obs), problem.encoder.latent_dim
+    for h, step in enumerate(plan.steps):
+        spec = skills[step.skill].spec
+        _require(len(step.inputs) == spec.n_in, f"step {h}: {step.skill} consumes {spec.n_in} entities, attention has {len(step.inputs)}")
+        kept_indices(k, step.inputs)
+        _require(len(step.subgoal) == spec.n_out and all(len(r) == d for r in step.subgoal), f"step {h}: subgoal must be ({spec.n_out}, {d})")
+        k += spec.delta
+        _require(len(step.state) == k, f"step {h}: state must have {k} entities, has {len(step.state)}")
+        _require(0.0 <= step.feasibility <= 1.0, f"step {h}: feasibility {step.feasibility} outside [0, 1]")
+    _require(math.isfinite(plan.final_cost) and plan.final_cost >= -atol, f"final cost {plan.final_cost} must be finite and >= 0")
+    subgoals = [torch.tensor(s.subgoal, dtype=problem.obs.dtype).unsqueeze(0) for s in plan.steps]
+    with torch.no_grad():
+        again = rollout(problem, plan.skills, [s.inputs for s in plan.steps], subgoals)
+    for h, step in enumerate(plan.steps):
+        _require(abs(float(again.feasibility[0, h]) - step.feasibility) <= atol, f"step {h}: reported feasibility {step.feasibility} differs from the model's {float(again.feasibility[0, h])}")
+        _require(torch.allclose(again.states[h][0], torch.tensor(step.state, dtype=problem.obs.dtype), atol=atol), f"step {h}: reported state differs from the rolled-out set")
+    _require(abs(float(again.cost[0]) - plan.final_cost) <= atol, f"reported final cost {plan.final_cost} differs from the model's {float(again.cost[0])}")
+    if cost_weight is not None:
+        floor_prod = math.prod(max(s.feasibility, 0.01) for s in plan.steps)
+        _require(plan.score <= floor_prod * math.exp(-cost_weight * max(plan.final_cost, 0.0)) + atol, "score exceeds the objective's value")
+    _require(plan.to_json() and Plan.from_json(plan.to_json()).to_json() == plan.to_json(), "plan does not survive a JSON round trip")
+
+
+def check_planner(planner: Planner, problem: PlanningProblem | None = None) -> Plan:
+    """Run ``planner`` on ``problem`` (default: the analytic problem) and check the plan, determinism and errors."""
+    from pasta.plugins.analytic import analytic_problem
+
+    _require(isinstance(planner, Planner), f"{planner!r} is not a pasta.core.Planner")
+    problem = problem or analytic_problem()
+    plan = planner.plan(problem)
+    check_plan(plan, problem, cost_weight=getattr(planner.config, "cost_weight", None))
+    again = planner.plan(problem)
+    _require(plan.to_json(timings=False) == again.to_json(timings=False), "the same seed must give the same plan (JSON without timings)")
+    impossible = analytic_problem(horizon=1, goal=problem.goal.new_zeros(3, problem.encoder.latent_dim) + 0.5)
+    try:
+        planner.plan(impossible)
+    except CardinalityError:
+        pass
+    else:
+        raise PluginConformanceError("a problem no skill sequence can solve must raise CardinalityError")
+    return plan
+
+
+def configured(registry: Any, name: str, overrides: dict[str, Any] | None = None) -> Any:
+    """Build ``name`` from ``registry`` with its default config updated by ``overrides``."""
+    cfg = registry.default_config(name)
+    for key, value in (overrides or {}).items():
+        if not hasattr(cfg, key):
+            raise PluginConformanceError(f"{registry.kind} '{name}' config has no field '{key}'")
+        setattr(cfg, key, value)
+    return registry.create(name, cfg)

@@ -1,0 +1,13 @@
+"""Settings of the 'sampling' planner."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pasta.planning.config import LatentPlannerConfig
+
+
+@dataclass
+class SamplingConfig(LatentPlannerConfig):
+    """the same search without gradients: cross-entropy method over sub-goal latents."""
+    elite_fraction: float = 0.1  # fraction of samples refitting the sampling distribution

@@ -1,0 +1,1 @@
+"""Built-in skill plugin 'cut': cut one dough piece in two with the knife."""
