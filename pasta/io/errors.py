@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from pasta.core.errors import PastaError
 
-class McapFormatError(Exception):
+
+class McapFormatError(PastaError):
     """The file is not a readable MCAP run file (bad magic, corrupt record, CRC mismatch).
 
-    The message always names the file.
+    The message always names the file. A :class:`pasta.core.errors.PastaError`, so the CLI prints it
+    as a one-line error.
     """
 
 

@@ -25,6 +25,8 @@ from pasta.io.schemas import LOG_SCHEMA, POINT_CLOUD_SCHEMA
 
 EXIT_OK, EXIT_VERIFY_FAILED, EXIT_BAD_FILE = 0, 1, 2
 
+HELP = "print a run file's timeline, export PNG/GIF frames, recover a truncated file, or re-simulate and --verify it"
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the ``replay`` options to ``parser``."""
