@@ -106,6 +106,7 @@ class RunLogger:
         self._sequence: dict[int, int] = {}
         self._attachments: set[str] = set()
         self._metadata_names: set[str] = set()
+        self._tool_names: dict[str, list[str]] = {}
         self._closed = False
         if metadata is not None:
             self.add_metadata(RUN_METADATA, metadata)
@@ -202,10 +203,16 @@ class RunLogger:
         self._write_proto(topic, t, S.encode_entities(t, list(entities)))
 
     def tools(self, topic: str, t_ns: int, tools: Sequence[ToolPrimitive]) -> None:
-        """Log tool poses as a ``foxglove.SceneUpdate`` (one entity per tool, id = tool name)."""
+        """Log tool poses as a ``foxglove.SceneUpdate`` (one entity per tool, id = tool name).
+        Tools shown earlier on ``topic`` but absent now are deleted from the scene."""
         self._check_open()
         t = _check_time(t_ns)
-        self._write_proto(topic, t, S.encode_tools(t, list(tools)))
+        tools = list(tools)
+        shown = self._tool_names.setdefault(topic, [])
+        now = [tool.name for tool in tools if isinstance(tool, ToolPrimitive)]
+        removed = [n for n in shown if n not in now]
+        self._write_proto(topic, t, S.encode_tools(t, tools, removed=removed))
+        self._tool_names[topic] = now
 
     def message(self, t_ns: int, level: int | str, text: str, *, name: str = "pasta", topic: str = LOG) -> None:
         """Log a text line as ``foxglove.Log``; ``level`` is a name (``"info"``, ``"warning"`` ...),

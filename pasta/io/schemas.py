@@ -31,6 +31,7 @@ from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
 from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
 from foxglove_schemas_protobuf.SceneEntity_pb2 import SceneEntity
+from foxglove_schemas_protobuf.SceneEntityDeletion_pb2 import SceneEntityDeletion
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 from foxglove_schemas_protobuf.SpherePrimitive_pb2 import SpherePrimitive
 
@@ -265,11 +266,18 @@ class ToolPrimitive:
         object.__setattr__(self, "color", _floats(self.color, 4, "color"))
 
 
-def encode_tools(t_ns: int, tools: Sequence[ToolPrimitive], frame_id: str = WORLD_FRAME) -> SceneUpdate:
+def encode_tools(
+    t_ns: int, tools: Sequence[ToolPrimitive], frame_id: str = WORLD_FRAME, removed: Sequence[str] = ()
+) -> SceneUpdate:
+    """SceneUpdate with one entity per tool; ``removed`` names get a deletion (so Foxglove stops
+    drawing tools that are no longer listed, e.g. parked ones)."""
     names = [t.name for t in tools]
     if len(set(names)) != len(names):
         raise ValueError(f"tool names must be unique in one message, got {names}")
     update = SceneUpdate()
+    for name in removed:
+        deletion = update.deletions.add(type=SceneEntityDeletion.MATCHING_ID, id=name)
+        _stamp(deletion.timestamp, t_ns)
     for tool in tools:
         if not isinstance(tool, ToolPrimitive):
             raise TypeError(f"tools must be ToolPrimitive instances, got {type(tool).__name__}")

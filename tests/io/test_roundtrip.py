@@ -209,3 +209,19 @@ def test_time_order_and_empty_entities(tmp_path):
     assert [v["i"] for _, v in r.messages("/a")] == [0, 1]
     assert [v["i"] for _, v in r.messages("/a", time_order=True)] == [1, 0]
     assert list(r.messages("/e")) == [(0, [])]
+
+
+def test_tools_missing_later_are_deleted_in_the_scene(tmp_path):
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+    from mcap.reader import make_reader
+
+    knife = ToolPrimitive("knife", "cube", (0.01, 0.1, 0.1), (0.5, 0.2, 0.5))
+    roller = ToolPrimitive("roller", "cylinder", (0.04, 0.04, 0.2), (0.3, 0.1, 0.3))
+    path = tmp_path / "r.mcap"
+    with RunLogger(path) as log:
+        log.tools("/tools", 0, [knife, roller])
+        log.tools("/tools", 1, [roller])
+    assert [v for _, v in RunReader(path).messages("/tools")] == [[knife, roller], [roller]]
+    with open(path, "rb") as f:
+        msgs = [SceneUpdate.FromString(m.data) for _, _, m in make_reader(f).iter_messages()]
+    assert [d.id for d in msgs[1].deletions] == ["knife"] and not msgs[0].deletions
