@@ -46,8 +46,10 @@ def min_cost_matching(cost: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         return totals.gather(1, best[:, None]).squeeze(1), perms[best]
     from scipy.optimize import linear_sum_assignment
 
+    import numpy as np
+
     host = cost.detach().cpu().numpy()
-    cols = torch.tensor([linear_sum_assignment(c)[1] for c in host], dtype=torch.long, device=cost.device)
+    cols = torch.from_numpy(np.stack([linear_sum_assignment(c)[1] for c in host])).to(cost.device)
     return cost.gather(2, cols[:, :, None]).squeeze(2).sum(-1), cols
 
 

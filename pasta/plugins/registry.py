@@ -187,7 +187,10 @@ def discover(group: str = ENTRY_POINT_GROUP, extra: dict[str, Any] | None = None
             continue
         try:
             pm.register(ep.load(), name=ep.name)
+            pm.check_pending()  # a hook implementation without a spec (a misspelled hook name) fails here
         except Exception as exc:  # noqa: BLE001 - any import-time failure of a third-party plugin
+            if pm.has_plugin(ep.name):
+                pm.unregister(name=ep.name)
             _fail(failures, ep.name, dist, f"{type(exc).__name__}: {exc}")
             continue
         origin[ep.name] = (dist, version)

@@ -1,0 +1,112 @@
+"""A throwaway third-party distribution (a *.dist-info with entry_points.txt on sys.path, no pip)."""
+
+import subprocess
+import sys
+import textwrap
+
+import pytest
+
+from pasta.cli import main
+from pasta.plugins import PluginLoadWarning
+from pasta.plugins.checks import check_skill
+
+PINCH_MODULE = '''
+from dataclasses import dataclass
+
+import torch
+
+from pasta.core import Planner, PluginConfig, Skill, SkillSpec
+from pasta.plugins import hookimpl
+
+SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="gripper", description="squeeze two pieces into one")
+
+
+class PinchSkill(Skill):
+    spec = SPEC
+
+    def feasibility(self, u_in, u_out):
+        self._check_tuple(u_in, u_out)
+        return torch.sigmoid(-(u_in.sum(1) - u_out[:, 0]).pow(2).sum(-1))
+
+
+@dataclass
+class BeamConfig(PluginConfig):
+    width: int = 4
+
+
+class BeamPlanner(Planner):
+    name = "beam"
+
+    def plan(self, problem):
+        raise NotImplementedError
+
+
+@hookimpl
+def pasta_register_skills(register):
+    register(spec=SPEC, factory="pinch_plugin:PinchSkill")
+
+
+@hookimpl
+def pasta_register_planners(register):
+    register(name="beam", factory="pinch_plugin:BeamPlanner", config=BeamConfig, summary="toy beam search")
+'''
+
+
+def make_distribution(root, dist, module, source, entry="pinch"):
+    info = root / f"{dist.replace('-', '_')}-0.3.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.3\n")
+    (info / "entry_points.txt").write_text(f"[pasta.plugins]\n{entry} = {module}\n")
+    (root / f"{module}.py").write_text(textwrap.dedent(source))
+
+
+@pytest.fixture
+def pinch_dist(tmp_path):
+    make_distribution(tmp_path, "pinch-pkg", "pinch_plugin", PINCH_MODULE)
+    return tmp_path
+
+
+def test_third_party_skill_and_planner_appear_and_disappear(pinch_dist, monkeypatch, fresh_plugins, capsys):
+    monkeypatch.syspath_prepend(str(pinch_dist))
+    plugins = fresh_plugins()
+    info = plugins.skills.info("pinch")
+    assert (info.spec.n_in, info.spec.n_out, info.distribution, info.version) == (2, 1, "pinch-pkg", "0.3")
+    skill = plugins.skills.create("pinch")
+    check_skill(skill)
+    planner = plugins.planners.create("beam")
+    assert planner.config.width == 4 and planner.config.name == "beam"
+    assert "cut" in plugins.skills  # built-ins still there
+
+    assert main(["plugins"]) == 0
+    out = capsys.readouterr().out
+    assert "pinch" in out and "2->1 (gripper)" in out and "pinch-pkg" in out and "beam" in out
+
+    monkeypatch.undo()
+    sys.modules.pop("pinch_plugin", None)
+    plugins = fresh_plugins()
+    assert "pinch" not in plugins.skills and "beam" not in plugins.planners
+
+
+def test_third_party_plugin_listed_by_cli_subprocess(pinch_dist):
+    env = {"PYTHONPATH": str(pinch_dist), "PATH": "/usr/bin:/bin"}
+    out = subprocess.run([sys.executable, "-m", "pasta", "plugins", "--kind", "skill"], capture_output=True, text=True, env=env, check=True)
+    assert "pinch" in out.stdout and "pinch-pkg" in out.stdout
+
+
+def test_broken_plugin_is_reported_and_others_load(tmp_path, monkeypatch, fresh_plugins):
+    make_distribution(tmp_path, "broken-pkg", "broken_plugin", "import does_not_exist_anywhere\n", entry="broken")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.warns(PluginLoadWarning, match=r"plugin 'broken' from distribution 'broken-pkg'.*does_not_exist_anywhere"):
+        plugins = fresh_plugins()
+    assert [(f.plugin, f.distribution) for f in plugins.failures] == [("broken", "broken-pkg")]
+    assert {"cut", "push", "roll"} <= set(plugins.skills.names())
+    assert "exhaustive" in plugins.planners
+
+
+def test_misspelled_hook_is_rejected_at_load(tmp_path, monkeypatch, fresh_plugins):
+    source = "from pasta.plugins import hookimpl\n\n@hookimpl\ndef pasta_register_skils(register):\n    pass\n"
+    make_distribution(tmp_path, "typo-pkg", "typo_plugin", source, entry="typo")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.warns(PluginLoadWarning, match="pasta_register_skils"):
+        plugins = fresh_plugins()
+    assert plugins.failures[0].plugin == "typo"
