@@ -143,7 +143,7 @@ class Skill:
         self.feasibility_model = model
 
     def attach_policy(self, model: Any) -> None:
-        """Attach a learned policy network used by :meth:`policy`."""
+        """Attach a learned policy: an object whose ``controller(skill)`` returns a :class:`Controller`."""
         self.policy_model = model
 
     def feasibility(self, u_in: torch.Tensor, u_out: torch.Tensor) -> torch.Tensor:
@@ -183,8 +183,10 @@ class Skill:
         raise self._missing("heuristic controller", "the skill plugin does not define `controller`")
 
     def policy(self) -> Controller:
-        """Learned point-cloud policy; needs :meth:`attach_policy`."""
-        raise self._missing("learned policy", "train one with `pasta train policy skill=NAME`")
+        """Learned point-cloud policy: the attached policy model's ``controller(skill)``."""
+        if self.policy_model is None:
+            raise self._missing("learned policy", "train one with `pasta train policy skill=NAME`")
+        return self.policy_model.controller(self)
 
     # -- helpers ------------------------------------------------------------------------------
     def _missing(self, what: str, fix: str) -> MissingComponentError:
