@@ -18,6 +18,7 @@ from typing import Any, Callable, TextIO
 
 import numpy as np
 
+from pasta.core.errors import PastaError
 from pasta.io.errors import McapFormatError, McapTruncatedError
 from pasta.io.run_log import ACTIONS, DOUGH, FINAL_STATE, INITIAL_STATE, METRICS, PLAN, SIM_CONFIG, STEP, TOOLS
 from pasta.io.run_reader import RunReader
@@ -79,7 +80,13 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
                 for p in written:
                     print(f"wrote {p}", file=out)
             if args.verify:
-                ok, dev = verify_run(reader, args.tolerance, out)
+                try:
+                    ok, _dev = verify_run(reader, args.tolerance, out)
+                except McapFormatError:
+                    raise
+                except PastaError as e:  # the simulator refused the logged state / config / action
+                    print(f"error: verify: {e}", file=err)
+                    return EXIT_VERIFY_FAILED
                 return EXIT_OK if ok else EXIT_VERIFY_FAILED
         except McapFormatError as e:
             print(f"error: {e}", file=err)

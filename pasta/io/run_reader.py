@@ -35,7 +35,7 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
-from mcap.well_known import MessageEncoding, SchemaEncoding
+from mcap.well_known import MessageEncoding
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
 from pasta.io import schemas as S

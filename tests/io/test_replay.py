@@ -3,7 +3,6 @@
 import argparse
 
 import numpy as np
-import pytest
 
 from pasta.io import RunReader, ToolPrimitive, export_demo_to_mcap
 from pasta.io import replay

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pasta.io import LogEntry, McapFormatError, McapTruncatedError, RunLogger, RunReader, ToolPrimitive
+from pasta.io import LogEntry, McapFormatError, RunLogger, RunReader, ToolPrimitive
 
 
 def _bitwise_equal(a, b):

@@ -2,7 +2,6 @@
 
 import argparse
 import io
-import json
 from dataclasses import asdict, dataclass
 
 import numpy as np
