@@ -210,6 +210,11 @@ class RunReader:
     def close(self) -> None:
         self._file.close()
 
+    def __del__(self) -> None:  # readers used without `with` must not leak file handles
+        f = getattr(self, "_file", None)
+        if f is not None:
+            f.close()
+
     def __enter__(self) -> "RunReader":
         return self
 

@@ -64,7 +64,7 @@ def test_channel_encodings_follow_foxglove_rules(sample_run):
                 assert json.loads(schema.data)["type"] == "object"
             else:
                 assert (ch.message_encoding, schema.encoding) == ("protobuf", "protobuf")
-        att = {a.name: a for a in make_reader(open(sample_run["path"], "rb")).iter_attachments()}
+        att = {a.name: a for a in make_reader(f).iter_attachments()}
         assert att["config.yaml"].media_type == "application/yaml"
 
 
