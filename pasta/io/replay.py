@@ -274,8 +274,8 @@ def export_frames(
                 kw: dict[str, Any] = {"c": c}
             else:
                 kw = {"c": pts[:, up], "cmap": "viridis", "vmin": lo[up], "vmax": hi[up]}
-            ax_top.scatter(pts[:, horiz[0]], pts[:, horiz[1]], s=2, linewidths=0, **kw)
-            ax_side.scatter(pts[:, horiz[0]], pts[:, up], s=2, linewidths=0, **kw)
+            ax_top.scatter(pts[:, horiz[0]], pts[:, horiz[1]], s=5, linewidths=0, **kw)
+            ax_side.scatter(pts[:, horiz[0]], pts[:, up], s=5, linewidths=0, **kw)
             for tool in _tools_at(track, t):
                 p = tool.position
                 ax_top.plot(p[horiz[0]], p[horiz[1]], "kx")
@@ -293,6 +293,7 @@ def export_frames(
             ax_side.set_ylabel(names[up])
             for ax in (ax_top, ax_side):
                 ax.set_aspect("equal", adjustable="box")
+            fig.tight_layout()
             png = out_dir / f"{_slug(topic)}_{k:05d}.png"
             fig.savefig(png)
             pngs.append(png)
