@@ -1,17 +1,5 @@
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
-
-_ROOT = Path(__file__).resolve().parents[2]
-if str(_ROOT) not in sys.path:  # allow `pytest tests/io` without an installed package
-    sys.path.insert(0, str(_ROOT))
-
-
-def pytest_configure(config):
-    config.addinivalue_line("markers", "sim: needs the Taichi simulator in pasta.sim (slow)")
-
 
 DT = 2e-3
 
