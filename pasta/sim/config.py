@@ -1,0 +1,131 @@
+"""Simulator configuration: one plain dataclass, omegaconf-compatible (only int/float/str/bool fields)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+
+from pasta.core.errors import ConfigError
+
+#: Parameters that live in Taichi scalar fields and can change at run time without a recompile
+#: (``Simulator.set_params``).
+RUNTIME_PARAMS = (
+    "dt",
+    "E",
+    "nu",
+    "yield_stress",
+    "gravity",
+    "ground_friction",
+    "spread_friction",
+    "spread_x_min",
+    "spread_x_max",
+    "softness",
+    "knife_friction",
+    "pusher_friction",
+    "roller_friction",
+)
+
+
+@dataclass
+class SimConfig:
+    """Everything the simulator needs. Units: the workspace is the unit cube, y is up, time in seconds.
+
+    Structural fields (changing them means new Taichi fields, hence new kernels): ``n_grid``,
+    ``max_particles``, ``arch``, ``cpu_threads``. Everything in :data:`RUNTIME_PARAMS` is a runtime
+    scalar and can also be changed later with ``Simulator.set_params``; ``substeps``,
+    ``n_particles``, ``obs_points`` and ``seed`` are plain Python values.
+
+    Defaults: grid 64^3 (dx = 0.0156: a 0.05 knife spans 3.2 cells, a 0.08 dough 5.1 cells),
+    dt = 1e-4 (CFL ~0.46 for the P-wave speed of E = 5e3, rho = 1), 20 substeps per env step
+    (2 ms of simulated time per env step).
+    """
+
+    # --- structure -----------------------------------------------------------------------------
+    n_grid: int = 64
+    max_particles: int = 10000
+    arch: str = "cpu"  # "cpu" | "cuda" | "gpu" | "vulkan" | "metal"
+    cpu_threads: int = 2  # 0 = let Taichi decide
+    # --- time ----------------------------------------------------------------------------------
+    dt: float = 1e-4
+    substeps: int = 20
+    # --- material (fixed-corotated + von Mises on Hencky strain) --------------------------------
+    E: float = 5e3
+    nu: float = 0.15
+    yield_stress: float = 150.0
+    # --- world ---------------------------------------------------------------------------------
+    gravity: float = -300.0  # y acceleration (large, as in PlasticineLab: quasi-static tool contact)
+    ground_friction: float = 0.5  # Coulomb floor friction outside the spreading area
+    spread_friction: float = 2.0  # Coulomb floor friction inside the spreading area
+    spread_x_min: float = 0.22
+    spread_x_max: float = 0.32
+    # --- tools ---------------------------------------------------------------------------------
+    softness: float = 666.0  # contact band: influence exp(-softness * sdf) > 0.1
+    knife_friction: float = 0.0
+    pusher_friction: float = 5.0
+    roller_friction: float = 0.9
+    # --- scenes and observations --------------------------------------------------------------
+    n_particles: int = 5000  # default particle count for scene helpers (1..max_particles)
+    obs_points: int = 1000  # size of the observed dough subset
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        def bad(name: str, why: str) -> ConfigError:
+            return ConfigError(f"sim.{name}={getattr(self, name)!r}: {why}")
+
+        for f in fields(self):
+            val = getattr(self, f.name)
+            if f.type in ("int", int) and (isinstance(val, bool) or not isinstance(val, int)):
+                raise bad(f.name, "must be an int")
+            if f.type in ("float", float):
+                if isinstance(val, bool) or not isinstance(val, (int, float)):
+                    raise bad(f.name, "must be a number")
+                if not math.isfinite(float(val)):
+                    raise bad(f.name, "must be finite")
+                object.__setattr__(self, f.name, float(val))
+        if not 16 <= self.n_grid <= 512:
+            raise bad("n_grid", "must be in [16, 512] (64 recommended)")
+        if not 1 <= self.max_particles <= 10_000_000:
+            raise bad("max_particles", "must be in [1, 1e7]")
+        if not 1 <= self.n_particles <= self.max_particles:
+            raise bad("n_particles", f"must be in [1, max_particles={self.max_particles}]")
+        if self.obs_points < 1:
+            raise bad("obs_points", "must be >= 1")
+        if self.arch not in ("cpu", "cuda", "gpu", "vulkan", "metal"):
+            raise bad("arch", "must be one of cpu, cuda, gpu, vulkan, metal")
+        if self.cpu_threads < 0:
+            raise bad("cpu_threads", "must be >= 0 (0 = Taichi's default)")
+        if self.substeps < 1:
+            raise bad("substeps", "must be >= 1")
+        check_params({k: getattr(self, k) for k in RUNTIME_PARAMS}, prefix="sim.")
+
+    @property
+    def dx(self) -> float:
+        return 1.0 / self.n_grid
+
+
+def check_params(p: dict, prefix: str = "") -> None:
+    """Validate runtime parameters; raise ConfigError naming the first bad one."""
+    for k, v in p.items():
+        if k not in RUNTIME_PARAMS:
+            raise ConfigError(f"unknown simulator parameter '{k}'; known: {', '.join(RUNTIME_PARAMS)}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)):
+            raise ConfigError(f"{prefix}{k}={v!r}: must be a finite number")
+    rules = {
+        "dt": lambda v: v > 0,
+        "E": lambda v: v > 0,
+        "nu": lambda v: -1.0 < v < 0.5,
+        "yield_stress": lambda v: v > 0,
+        "ground_friction": lambda v: v >= 0,
+        "spread_friction": lambda v: v >= 0,
+        "softness": lambda v: v >= 0,
+        "knife_friction": lambda v: v >= 0,
+        "pusher_friction": lambda v: v >= 0,
+        "roller_friction": lambda v: v >= 0,
+    }
+    what = {
+        "nu": "must be in (-1, 0.5)",
+    }
+    for k, v in p.items():
+        rule = rules.get(k)
+        if rule is not None and not rule(float(v)):
+            raise ConfigError(f"{prefix}{k}={v!r}: {what.get(k, 'must be > 0' if k in ('dt', 'E', 'yield_stress') else 'must be >= 0')}")
