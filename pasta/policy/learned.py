@@ -1,0 +1,116 @@
+"""The learned policy object a skill carries: ``skill.attach_policy(LearnedPolicy)``.
+
+:meth:`LearnedPolicy.controller` returns a :class:`PolicyController` (the
+:class:`~pasta.core.skill.Controller` contract): it subsamples the observed piece, the tool points
+and the sub-goal to the network's point counts with a seeded generator, runs the network and returns
+the action ``(A,)`` in ``[-1, 1]`` and ``done`` (done probability above ``done_threshold``, never
+before ``min_steps`` actions).
+
+Checkpoints: ``DIR/model.safetensors`` + ``DIR/model.json`` with module ``"policy"`` and config
+``{"skill", "tool", "network": PolicyConfig}`` (written by :func:`pasta.policy.train.train_policy`
+through the shared loop of :mod:`pasta.train.loop`).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+import torch
+
+from pasta.core.errors import InputError
+from pasta.core.skill import Controller, Skill, SkillObservation
+from pasta.policy.network import PolicyConfig, PolicyNet
+
+__all__ = ["MODULE", "LearnedPolicy", "PolicyController", "load_policy"]
+
+#: checkpoint module name of a policy
+MODULE = "policy"
+
+
+class LearnedPolicy:
+    """A trained policy network of one skill.
+
+    Args:
+        net: the network.
+        skill: name of the skill it was trained for (checked when a controller is made).
+        done_threshold: done when ``sigmoid(logit) > done_threshold``.
+        min_steps: the done head is ignored before this many actions.
+        seed: seed of the point subsampling of each controller.
+    """
+
+    def __init__(self, net: PolicyNet, skill: str, *, done_threshold: float = 0.5, min_steps: int = 1,
+                 seed: int = 0) -> None:
+        self.net = net.eval()
+        self.skill = skill
+        self.done_threshold = done_threshold
+        self.min_steps = min_steps
+        self.seed = seed
+
+    @property
+    def config(self) -> PolicyConfig:
+        return self.net.cfg
+
+    @classmethod
+    def load(cls, directory: str | os.PathLike, skill: str | None = None, *, device: str = "cpu", **kwargs: Any) -> LearnedPolicy:
+        """Load ``DIR/model.*``; with ``skill`` the checkpoint must belong to that skill."""
+        from pasta.io.checkpoint import load_checkpoint
+
+        ckpt = load_checkpoint(directory, module=MODULE, expect={"skill": skill} if skill else None,
+                               hint=f"train one with `pasta train policy skill={skill or 'NAME'} data=DIR out={directory}`")
+        net = PolicyNet(PolicyConfig.from_dict(ckpt.config["network"]))
+        net.load_state_dict(ckpt.tensors)
+        return cls(net.to(device), ckpt.config["skill"], **kwargs)
+
+    def controller(self, skill: Skill) -> PolicyController:
+        """A fresh closed-loop controller for ``skill`` (must be the skill the policy was trained for)."""
+        if skill.name != self.skill:
+            raise InputError(f"policy trained for '{self.skill}' cannot drive skill '{skill.name}'")
+        return PolicyController(self)
+
+    @torch.no_grad()
+    def predict(self, dough: np.ndarray, tool: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Batched inference: ``dough (B, P, 3)``, ``tool (B, T, 3)``, ``goal (B, G, 3)`` (already at the
+        network's point counts) -> ``action (B, A)``, ``done probability (B,)``."""
+        dev = next(self.net.parameters()).device
+        a, logit = self.net(*(torch.as_tensor(np.asarray(x, np.float32), device=dev) for x in (dough, tool, goal)))
+        return a.cpu().numpy(), torch.sigmoid(logit).cpu().numpy()
+
+
+class PolicyController(Controller):
+    """Drives one execution of a skill with a :class:`LearnedPolicy`."""
+
+    def __init__(self, policy: LearnedPolicy) -> None:
+        self.policy = policy
+        self.rng = np.random.default_rng(policy.seed)
+        self.steps = 0
+        self.last_done_prob = 0.0
+
+    def reset(self, obs: SkillObservation) -> None:
+        self.rng = np.random.default_rng(self.policy.seed)
+        self.steps = 0
+
+    def _pick(self, cloud: np.ndarray, n: int, what: str) -> np.ndarray:
+        cloud = np.asarray(cloud, np.float32)
+        if cloud.ndim != 2 or cloud.shape[1] != 3 or len(cloud) == 0:
+            raise InputError(f"policy observation: {what} must be a non-empty (N, 3) array, got shape {cloud.shape}")
+        return cloud[self.rng.choice(len(cloud), size=n, replace=len(cloud) < n)]
+
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+        cfg = self.policy.config
+        dough = self._pick(obs.piece, cfg.dough_points, "piece")
+        tool = self._pick(obs.tool_points, cfg.tool_points, "tool_points")
+        goal = self._pick(obs.goal, cfg.goal_points, "goal")
+        action, prob = self.policy.predict(dough[None], tool[None], goal[None])
+        self.steps += 1
+        self.last_done_prob = float(prob[0])
+        done = self.steps >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold
+        return action[0].astype(np.float32), bool(done)
+
+
+def load_policy(directory: str | os.PathLike, skill: Skill, **kwargs: Any) -> LearnedPolicy:
+    """Load the policy of ``skill`` from ``directory`` and attach it to the skill; return it."""
+    policy = LearnedPolicy.load(directory, skill.name, **kwargs)
+    skill.attach_policy(policy)
+    return policy

@@ -1,0 +1,111 @@
+"""The per-skill policy network: PointNet++ over dough + tool + sub-goal points -> action and done.
+
+Input: three clouds of one skill execution step,
+
+- ``dough (B, P, 3)``: the attended piece(s),
+- ``tool (B, T, 3)``: the skill's tool surface points,
+- ``goal (B, G, 3)``: the step's sub-goal (all produced entities together),
+
+concatenated to one cloud of ``P + T + G`` points, each with a one-hot source feature
+(dough ``[1, 0, 0]``, tool ``[0, 1, 0]``, goal ``[0, 0, 1]``). With ``center_xz`` the clouds are
+shifted so that the dough centroid lies at ``x = z = 0`` (``y``, the height above the floor, is
+kept): actions are relative tool motions, so the policy need not learn every placement.
+
+Output: ``action (B, A)`` in ``[-1, 1]`` (tanh) and ``done (B,)`` logits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import torch
+from torch import nn
+
+from pasta.policy.pointnet2 import PointNet2, PointNet2Config, SAConfig
+
+__all__ = ["PolicyConfig", "PolicyNet"]
+
+
+@dataclass
+class PolicyConfig:
+    """Sizes of one skill policy.
+
+    Attributes:
+        action_dim: ``A``, the skill's tool action size.
+        dough_points, tool_points, goal_points: points per source fed to the network.
+        center_xz: shift every cloud so that the dough centroid is at ``x = z = 0``.
+        encoder: the PointNet++ sizes.
+        head_widths: hidden widths of the action and done heads.
+    """
+
+    action_dim: int = 2
+    dough_points: int = 512
+    tool_points: int = 100
+    goal_points: int = 512
+    center_xz: bool = True
+    encoder: PointNet2Config = field(default_factory=PointNet2Config)
+    head_widths: tuple[int, ...] = (256, 128)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["head_widths"] = list(self.head_widths)
+        d["encoder"]["global_widths"] = list(self.encoder.global_widths)
+        for lv in d["encoder"]["levels"]:
+            lv["widths"] = list(lv["widths"])
+        return d
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> PolicyConfig:
+        d = dict(d)
+        enc = dict(d.pop("encoder", {}))
+        levels = [SAConfig(int(lv["centers"]), float(lv["radius"]), int(lv["k"]), tuple(int(w) for w in lv["widths"]))
+                  for lv in enc.pop("levels", [])] or None
+        encoder = PointNet2Config(
+            in_features=int(enc.get("in_features", 3)),
+            pos_scale=float(enc.get("pos_scale", 10.0)),
+            global_widths=tuple(int(w) for w in enc.get("global_widths", (128, 256, 512))),
+            **({"levels": levels} if levels else {}),
+        )
+        head = tuple(int(w) for w in d.pop("head_widths", (256, 128)))
+        return cls(encoder=encoder, head_widths=head, **d)
+
+
+def _head(sizes: list[int]) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+        layers.append(nn.Linear(a, b))
+        if i < len(sizes) - 2:
+            layers.append(nn.ReLU())
+    return nn.Sequential(*layers)
+
+
+class PolicyNet(nn.Module):
+    """``(dough (B, P, 3), tool (B, T, 3), goal (B, G, 3))`` -> ``(action (B, A) in [-1, 1], done logit (B,))``."""
+
+    def __init__(self, cfg: PolicyConfig | None = None) -> None:
+        super().__init__()
+        self.cfg = cfg = cfg or PolicyConfig()
+        if cfg.encoder.in_features != 3:
+            raise ValueError("the policy's PointNet++ takes the 3-channel one-hot source feature")
+        self.encoder = PointNet2(cfg.encoder)
+        widths = [cfg.encoder.out_dim, *cfg.head_widths]
+        self.action_head = _head([*widths, cfg.action_dim])
+        self.done_head = _head([*widths, 1])
+        # Small last layers: the initial action is near 0 and the initial done probability near 1/2.
+        for head in (self.action_head, self.done_head):
+            last = head[-1]
+            assert isinstance(last, nn.Linear)
+            nn.init.uniform_(last.weight, -1e-3, 1e-3)
+            nn.init.zeros_(last.bias)
+
+    def forward(self, dough: torch.Tensor, tool: torch.Tensor, goal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        xyz = torch.cat([dough, tool, goal], 1)
+        if self.cfg.center_xz:
+            shift = dough.mean(1, keepdim=True) * xyz.new_tensor([1.0, 0.0, 1.0])
+            xyz = xyz - shift
+        sizes = (dough.shape[1], tool.shape[1], goal.shape[1])
+        src = torch.cat([torch.full((n,), i, dtype=torch.long, device=xyz.device) for i, n in enumerate(sizes)])
+        onehot = nn.functional.one_hot(src, 3).to(xyz.dtype).unsqueeze(0).expand(xyz.shape[0], -1, -1)
+        h = self.encoder(xyz, onehot)
+        return torch.tanh(self.action_head(h)), self.done_head(h).squeeze(-1)
