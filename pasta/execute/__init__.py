@@ -1,0 +1,8 @@
+"""Plan execution: decode sub-goals, attend the observed pieces, run each skill, score the result.
+
+See :func:`pasta.execute.executor.execute_plan` and docs/policies.md.
+"""
+
+from pasta.execute.executor import ExecuteConfig, ExecutionResult, StepInfo, attend, decode_entities, execute_plan
+
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "execute_plan"]

@@ -1,0 +1,339 @@
+"""Execute a plan in the simulator and score it.
+
+For each plan step (reference: PASTA's ``execute``, our docs/policies.md):
+
+1. observe and decompose the dough (DBSCAN, ``min_points`` 50);
+2. decode the step's sub-goal latents with the encoder (``decode_points`` per entity) and concatenate
+   them: that is the controller's goal;
+3. pick the attended piece: at the first step of a plan the entities at the plan's input indices; at
+   later steps, for each planned input entity, the observed entity whose centroid is nearest to the
+   planned centroid ``t`` (each observed entity used once). The piece is tracked by particle identity
+   through the step (the simulator observes a fixed particle subset, ``Observation.dough_index``);
+4. optionally skip the step when the whole dough already matches the decoded planned state
+   (Chamfer below ``skip_threshold``; the paper's ``exec_threshold``);
+5. run the skill through :func:`pasta.tasks.executor.run_skill`: approach pose, the learned policy or
+   the heuristic controller up to ``max_steps`` or done, ``idle_steps`` zero-action steps, park;
+6. closed loop (optional): re-plan from the new observation for the remaining steps.
+
+The score is the normalised improvement ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the
+goal cloud. With a :class:`pasta.io.RunLogger` the run is logged in the replay-verifiable format of
+docs/logging.md (initial/final state, sim config, every teleport and env step on ``/actions``).
+"""
+
+from __future__ import annotations
+
+import io
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pasta.core.decompose import decompose_labels
+from pasta.core.errors import ConfigError, InputError
+from pasta.core.metrics import chamfer, emd, normalized_improvement
+from pasta.core.plan import Plan, PlanStep
+from pasta.core.skill import Controller, Skill
+
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "execute_plan"]
+
+
+@dataclass
+class ExecuteConfig:
+    """Settings of plan execution (``execute.*`` on ``pasta run``).
+
+    Attributes:
+        controller: ``"learned"`` (the skill's attached policy) or ``"heuristic"`` (its controller).
+        max_steps: controller steps per skill at most.
+        idle_steps: zero-action steps after each skill.
+        min_points: DBSCAN clusters smaller than this are noise (50 at execution, as in the paper).
+        decode_points: points per decoded sub-goal entity.
+        skip_threshold: skip a step whose decoded planned state is already within this Chamfer
+            distance of the dough (0 disables).
+        closed_loop: re-plan after each executed step from the new observation (needs a re-planner).
+        emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
+        log_every: log the dough cloud every this many env steps (actions are always logged).
+    """
+
+    controller: str = "learned"
+    max_steps: int = 50
+    idle_steps: int = 10
+    min_points: int = 50
+    decode_points: int = 1000
+    skip_threshold: float = 0.0
+    closed_loop: bool = False
+    emd_points: int = 500
+    emd_seed: int = 0
+    log_every: int = 1
+
+    def __post_init__(self) -> None:
+        if self.controller not in ("learned", "heuristic"):
+            raise ConfigError(f"execute.controller must be 'learned' or 'heuristic', got {self.controller!r}")
+        if self.max_steps < 1 or self.idle_steps < 0 or self.min_points < 1 or self.decode_points < 1:
+            raise ConfigError("execute: max_steps, min_points, decode_points must be >= 1 and idle_steps >= 0")
+
+
+@dataclass
+class StepInfo:
+    """What happened at one executed plan step."""
+
+    step: int
+    skill: str
+    inputs: tuple[int, ...]
+    attended: tuple[int, ...]
+    entities_observed: int
+    piece_points: int
+    env_steps: int
+    done: bool
+    skipped: bool
+    emd: float
+    normalized_improvement: float
+    wall_s: float
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["inputs"], d["attended"] = list(self.inputs), list(self.attended)
+        return d
+
+
+@dataclass
+class ExecutionResult:
+    """The outcome of :func:`execute_plan`: the score, per-step info and the final observed dough ``(P, 3)``."""
+
+    normalized_improvement: float
+    emd_initial: float
+    emd_final: float
+    steps: list[StepInfo]
+    final_dough: np.ndarray
+    plans: list[Plan] = field(default_factory=list)
+    diverged: str | None = None
+
+
+def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points: int) -> list[np.ndarray]:
+    """Decode ``(K, D)`` latents with ``encoder`` into ``K`` clouds ``(num_points, 3)`` float32."""
+    import torch
+
+    if len(latents) == 0:
+        return []
+    with torch.no_grad():
+        out = encoder.decode(torch.as_tensor(np.asarray(latents, np.float32)), num_points)
+    out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
+    return [np.asarray(c, np.float32) for c in out]
+
+
+def attend(labels: np.ndarray, points: np.ndarray, step: PlanStep, planned_before: Sequence[Sequence[float]],
+           z_dim: int, first: bool) -> tuple[int, ...]:
+    """Observed entity ids the step acts on.
+
+    Args:
+        labels: ``(P,)`` entity id of every observed point.
+        points: ``(P, 3)`` observed dough.
+        step: the plan step (its ``inputs`` index ``planned_before``).
+        planned_before: ``(K, D)`` planned latent set before the step.
+        z_dim: shape-code size ``Z``; the centroid is ``u[Z:Z+3]``.
+        first: the first step of a plan: take the observed entities at the input indices when they exist.
+    """
+    k = int(labels.max()) + 1
+    if first and all(i < k for i in step.inputs):
+        return tuple(int(i) for i in step.inputs)
+    centroids = np.stack([points[labels == e].mean(0) for e in range(k)])
+    chosen: list[int] = []
+    for i in step.inputs:
+        t = np.asarray(planned_before[i], np.float64)[z_dim : z_dim + 3]
+        d = np.linalg.norm(centroids - t, axis=1)
+        d[chosen] = np.inf
+        if not np.isfinite(d).any():
+            raise InputError(f"step '{step.skill}' needs {len(step.inputs)} pieces but only {k} are observed")
+        chosen.append(int(np.argmin(d)))
+    return tuple(chosen)
+
+
+def _controller(skill: Skill, kind: str) -> Controller:
+    return skill.policy() if kind == "learned" else skill.controller()
+
+
+def execute_plan(
+    sim: Any,
+    plan: Plan,
+    *,
+    skills: Mapping[str, Skill],
+    encoder: Any,
+    goal: np.ndarray,
+    cfg: ExecuteConfig | None = None,
+    replan: Callable[[np.ndarray, int], Plan] | None = None,
+    logger: Any = None,
+) -> ExecutionResult:
+    """Execute ``plan`` in ``sim`` (a :class:`pasta.sim.Simulator` with the scene loaded) and score it.
+
+    Args:
+        skills: skill name -> skill (with a policy attached for ``controller="learned"``).
+        encoder: the :class:`~pasta.core.Encoder` that decodes the sub-goal latents.
+        goal: ``(G, 3)`` goal cloud of the task (the score's reference).
+        cfg: execution settings.
+        replan: ``(observed dough (P, 3), steps left) -> Plan``, used when ``cfg.closed_loop``.
+        logger: a :class:`pasta.io.RunLogger` (or ``None``): the execution is logged into it.
+
+    Returns:
+        :class:`ExecutionResult` with the final normalised improvement and per-step info.
+    """
+    from pasta.tasks.executor import run_skill
+
+    cfg = cfg or ExecuteConfig()
+    if cfg.closed_loop and replan is None:
+        raise ConfigError("execute.closed_loop needs a re-planner (pasta run provides one)")
+    missing = sorted({s.skill for s in plan.steps} - set(skills))
+    if missing:
+        raise InputError(f"the plan uses skills {missing} that were not given to the executor")
+    goal = np.asarray(goal, np.float32)
+    log = _Log(logger, sim, cfg.log_every) if logger is not None else None
+    obs = sim.observe()
+    emd0 = emd(obs.dough, goal, n=cfg.emd_points, seed=cfg.emd_seed)
+    if log:
+        log.start(obs, goal, plan)
+    horizon = plan.horizon
+    plans, current, h_plan = [plan], plan, 0
+    infos: list[StepInfo] = []
+    diverged = None
+    for h in range(horizon):
+        t0 = time.perf_counter()
+        step = current.steps[h_plan]
+        skill = skills[step.skill]
+        before = current.initial if h_plan == 0 else current.steps[h_plan - 1].state
+        obs = sim.observe()
+        labels = decompose_labels(obs.dough, min_points=cfg.min_points)
+        attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=h_plan == 0)
+        idx = np.flatnonzero(np.isin(labels, attended))
+        subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points)
+        goal_points = np.concatenate(subgoal, 0)
+        skipped = False
+        if cfg.skip_threshold > 0:
+            planned = np.concatenate(decode_entities(encoder, step.state, cfg.decode_points), 0)
+            skipped = float(chamfer(obs.dough, planned)) < cfg.skip_threshold
+        if log:
+            log.step_start(h, obs, labels, subgoal, step, attended)
+        steps_run, done = 0, False
+        if not skipped:
+            controller = _controller(skill, cfg.controller)
+            start_step = sim.step_count
+            try:
+                res = run_skill(sim, skill, controller, idx, goal_points, max_steps=cfg.max_steps,
+                                idle_steps=cfg.idle_steps, record=log is not None)
+                steps_run, done = res.steps, res.done
+                if log:
+                    log.skill_run(start_step, skill, res, cfg.idle_steps)
+            except Exception as exc:  # noqa: BLE001 - a diverged simulation ends the episode, scored as is
+                from pasta.sim import SimulationDiverged
+
+                if not isinstance(exc, SimulationDiverged):
+                    raise
+                diverged = str(exc)
+        final = obs.dough if diverged else sim.observe().dough
+        e = emd(final, goal, n=cfg.emd_points, seed=cfg.emd_seed)
+        info = StepInfo(h, step.skill, step.inputs, attended, int(labels.max()) + 1, len(idx), steps_run, done,
+                        skipped, e, normalized_improvement(emd0, e), time.perf_counter() - t0)
+        infos.append(info)
+        if log:
+            log.step_end(info)
+        if diverged:
+            break
+        h_plan += 1
+        if cfg.closed_loop and h + 1 < horizon:
+            current, h_plan = replan(sim.observe().dough, horizon - h - 1), 0
+            plans.append(current)
+            if log:
+                log.plan(current)
+    final = infos[-1] if infos else None
+    final_dough = obs.dough if diverged else sim.observe().dough
+    emd_t = final.emd if final else emd0
+    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, plans, diverged)
+    if log:
+        log.finish(result)
+    return result
+
+
+class _Log:
+    """Writes an execution into a RunLogger (topics of docs/logging.md)."""
+
+    def __init__(self, logger: Any, sim: Any, every: int = 1) -> None:
+        self.log, self.sim, self.every = logger, sim, max(1, every)
+        self.env_dt = sim.cfg.dt * sim.cfg.substeps
+
+    def t(self, step: int) -> int:
+        from pasta.io import step_time_ns
+
+        return step_time_ns(step, self.env_dt)
+
+    def start(self, obs: Any, goal: np.ndarray, plan: Plan) -> None:
+        buf = io.BytesIO()
+        self.sim.get_state().save(buf)
+        self.log.attach("initial_state.npz", buf.getvalue(), "application/x-npz", t_ns=self.t(self.sim.step_count))
+        self.log.attach_json("sim_config.json", asdict(self.sim.cfg))
+        t = self.t(self.sim.step_count)
+        self.log.point_cloud("/goal", t, goal)
+        self.log.point_cloud("/dough", t, obs.dough)
+        self.tools(t)
+        self.plan(plan)
+
+    def plan(self, plan: Plan) -> None:
+        d = plan.to_dict(timings=True)
+        d["cost"] = plan.final_cost
+        for s in d["steps"]:
+            s["outputs"] = len(s["subgoal"])
+        self.log.plan(self.t(self.sim.step_count), d)
+
+    def tools(self, t: int) -> None:
+        from pasta.io import ToolPrimitive
+        from pasta.sim.tools import KNIFE_HALF, PUSHER_HALF, ROLLER_HALF_LENGTH, ROLLER_RADIUS, TOOL_NAMES
+
+        shapes = {"knife": ("cube", [2 * h for h in KNIFE_HALF]), "pusher": ("cube", [2 * h for h in PUSHER_HALF]),
+                  "roller": ("cylinder", [2 * ROLLER_RADIUS, 2 * ROLLER_RADIUS, 2 * ROLLER_HALF_LENGTH])}
+        prims = []
+        for name in TOOL_NAMES:
+            if name in shapes:
+                pose = self.sim.tool_pose(name)
+                prims.append(ToolPrimitive(name, shapes[name][0], shapes[name][1], pose[:3], pose[3:]))
+        self.log.tools("/tools", t, prims)
+
+    def step_start(self, h: int, obs: Any, labels: np.ndarray, subgoal: list[np.ndarray], step: PlanStep,
+                   attended: tuple[int, ...]) -> None:
+        t = self.t(self.sim.step_count)
+        self.log.entities("/entities", t, [obs.dough[labels == e] for e in range(int(labels.max()) + 1)])
+        self.log.entities("/plan/subgoals", t, subgoal)
+        self.log.message(t, "info", f"step {h}: {step.skill} on planned entities {list(step.inputs)} "
+                                    f"-> observed entities {list(attended)}")
+
+    def skill_run(self, start: int, skill: Skill, res: Any, idle: int) -> None:
+        tool, traj = skill.tool, res.trajectory
+        s = start
+        self.log.set_tool_pose(self.t(s), s, tool, list(res.approach.position), yaw=float(res.approach.yaw))
+        for i, action in enumerate(traj.action):
+            self.log.action(self.t(s + 1), s, tool, np.asarray(action, np.float32))
+            s += 1
+            if s % self.every == 0:
+                self.log.point_cloud("/dough", self.t(s), traj.dough[i + 1])
+        from pasta.io import ACTIONS
+        from pasta.io.schemas import ACTION_SCHEMA
+
+        for _ in range(idle):  # run_skill's idle steps: sim.step() with no tool action
+            self.log.json(ACTIONS, self.t(s + 1), {"step": s, "actions": {}}, schema=ACTION_SCHEMA)
+            s += 1
+        pose = skill.park_pose()
+        self.log.set_tool_pose(self.t(s), s, tool, list(pose.position), yaw=float(pose.yaw))
+        t = self.t(self.sim.step_count)
+        self.log.point_cloud("/dough", t, self.sim.observe().dough)
+        self.tools(t)
+
+    def step_end(self, info: StepInfo) -> None:
+        self.log.step_result(self.t(self.sim.step_count), {**info.to_dict(), "score": info.normalized_improvement})
+
+    def finish(self, result: ExecutionResult) -> None:
+        t = self.t(self.sim.step_count)
+        if result.diverged is None:
+            buf = io.BytesIO()
+            self.sim.get_state().save(buf)
+            self.log.attach("final_state.npz", buf.getvalue(), "application/x-npz", t_ns=t)
+        self.log.metrics(t, {"normalized_improvement": result.normalized_improvement, "emd_initial": result.emd_initial,
+                             "emd_final": result.emd_final, "steps": len(result.steps),
+                             "env_steps": int(sum(s.env_steps for s in result.steps)),
+                             "diverged": result.diverged is not None})
