@@ -2,18 +2,35 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from pasta.core import PluginConfig
 
 
 @dataclass
 class LatentPlannerConfig(PluginConfig):
-    """Objective ``prod_h max(f_h, floor) * exp(-cost_weight * C) + aux_weight * sum_h f_h``."""
+    """Objective ``prod_h max(f_h, floor) * exp(-cost_weight * C) + aux_weight * sum_h f_h``.
+
+    ``num_samples`` counts attention + sub-goal samples *per skill sequence*; a search over ``S``
+    sequences optimises ``S * num_samples`` samples in one batch.
+    """
 
     num_samples: int = 5000  # attention + sub-goal samples per skill sequence (paper 5000)
-    iterations: int = 100  # optimiser iterations (paper 100-300)
+    iterations: int = 100  # optimiser iterations (paper 100-300); the last one only evaluates
     lr: float = 0.01  # Adam learning rate on the sub-goal latents (paper 0.01)
+    # Adam's epsilon. torch's 1e-8 swamps the tiny gradients of floored feasibilities (the aux term is
+    # there to keep them alive); a small epsilon lets Adam follow them at full step size.
+    adam_eps: float = 1e-20
     cost_weight: float = 100.0  # lambda (paper: 100 for CRS-type tasks, 10 otherwise)
     feasibility_floor: float = 0.01
     aux_weight: float = 0.01
+    # Set-cost matching: "recompute" re-solves the minimum-cost matching every iteration (one batched
+    # op for <= 4 entities); "frozen" solves it at the first iteration and afterwards evaluates the cost
+    # model only on the matched pairs (the paper's choice; 1/G of the cost-model work). "auto": frozen.
+    matching: str = "auto"
+    # Successive halving: at these fractions of the iterations keep the better half of the samples
+    # (ranked by objective over all sequences), always keeping each sequence's best `keep_per_sequence`.
+    successive_halving: bool = False
+    halving_points: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5])
+    halving_scope: str = "sequence"  # "sequence": halve every sequence; "global": rank all samples together
+    keep_per_sequence: int = 4  # also: candidates per sequence reported in plan.info (paper top-4)

@@ -21,3 +21,8 @@ def plan_score(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: fl
 def plan_loss(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float, floor: float, aux_weight: float) -> torch.Tensor:
     """Per-sample loss to minimise: ``-score - aux_weight * sum_h f_h`` (the sum keeps gradients alive) -> ``(B,)``."""
     return -plan_score(feasibility, cost, cost_weight=cost_weight, floor=floor) - aux_weight * feasibility.sum(-1)
+
+
+def plan_objective(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float, floor: float, aux_weight: float) -> torch.Tensor:
+    """The quantity the planners maximise, ``score + aux_weight * sum_h f_h`` -> ``(B,)`` (``= -plan_loss``)."""
+    return -plan_loss(feasibility, cost, cost_weight=cost_weight, floor=floor, aux_weight=aux_weight)

@@ -10,4 +10,7 @@ from pasta.planning.config import LatentPlannerConfig
 @dataclass
 class ExhaustiveConfig(LatentPlannerConfig):
     """every skill sequence with the right cardinality, random attention, Adam on sub-goal latents (PASTA)."""
-    successive_halving: bool = False  # drop the worse half of the samples at fixed fractions of the iterations
+
+    # 0: only sequences of the problem's horizon H; N > 0: every horizon 1..N, optimised in one batch
+    # (ignored when the problem gives a skeleton).
+    max_horizon: int = 0

@@ -10,4 +10,5 @@ from pasta.planning.config import LatentPlannerConfig
 @dataclass
 class RecedingHorizonConfig(LatentPlannerConfig):
     """optimise a window of steps, commit the first, slide (long tasks)."""
+
     window: int = 3  # steps optimised at once (paper: 3)

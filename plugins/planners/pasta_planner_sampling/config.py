@@ -10,4 +10,6 @@ from pasta.planning.config import LatentPlannerConfig
 @dataclass
 class SamplingConfig(LatentPlannerConfig):
     """the same search without gradients: cross-entropy method over sub-goal latents."""
-    elite_fraction: float = 0.1  # fraction of samples refitting the sampling distribution
+
+    elite_fraction: float = 0.1  # fraction of each (sequence, attention) population refitting its Gaussian
+    min_std: float = 0.001  # floor of the refitted standard deviation

@@ -1,0 +1,313 @@
+"""Batched candidate plans and their evaluation: all samples of all skill sequences in a few tensor ops.
+
+A *candidate* is one skill sequence with one attention structure (sampled once, never optimised) and
+one latent per produced entity. Candidates whose sequences share a cardinality signature
+``((N_1, M_1), ..., (N_H, M_H))`` share every set size along the way, so they form one :class:`Group`
+whose states are plain ``(B, K_h, D)`` tensors. Within a group the set after step ``h`` is
+``[new (B, M_h, D), untouched (B, K_h - N_h, D)]`` (the convention of :mod:`pasta.core.plan`).
+
+Feasibility is grouped by skill: every (sample, step) pair that uses skill ``k``, over all groups and
+steps, is gathered and fed to skill ``k``'s feasibility in one call, so an evaluation makes one call per
+skill plus one (or two) cost-model calls, whatever the number of samples, sequences or steps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import torch
+
+from pasta.core import CostModel, Encoder, Skill
+from pasta.core.errors import InputError
+from pasta.core.matching import min_cost_matching
+
+
+@dataclass
+class Group:
+    """Samples whose skill sequences share one cardinality signature.
+
+    Attributes:
+        signature: ``((N_h, M_h), ...)`` per step, length ``H``.
+        seq: ``(B,)`` index of each sample's skill sequence (into :attr:`CandidateBatch.sequences`).
+        inputs: per step ``h``, ``(B, N_h)`` indices (sorted) of the consumed entities.
+        kept: per step ``h``, ``(B, K_h - N_h)`` indices (sorted) of the untouched entities.
+        latents: ``(B, sum_h M_h, D)`` the produced entities of all steps, step after step.
+    """
+
+    signature: tuple[tuple[int, int], ...]
+    seq: torch.Tensor
+    inputs: list[torch.Tensor]
+    kept: list[torch.Tensor]
+    latents: torch.Tensor
+
+    @property
+    def size(self) -> int:
+        return int(self.seq.shape[0])
+
+    @property
+    def horizon(self) -> int:
+        return len(self.signature)
+
+    @property
+    def offsets(self) -> list[int]:
+        out, off = [], 0
+        for _, m in self.signature:
+            out.append(off)
+            off += m
+        return out
+
+    def select(self, index: torch.Tensor, latents: torch.Tensor | None = None) -> Group:
+        """The samples at ``index (B',)``; ``latents`` replaces the (already selected) latents if given."""
+        return Group(
+            self.signature,
+            self.seq[index],
+            [i[index] for i in self.inputs],
+            [k[index] for k in self.kept],
+            self.latents[index] if latents is None else latents,
+        )
+
+
+@dataclass
+class CandidateBatch:
+    """Every sample of every skill sequence of one search.
+
+    Attributes:
+        start: ``(K_0, D)`` the set the sequences start from.
+        goal: ``(G, D)`` the goal set.
+        sequences: the skill sequences (names).
+        skill_ids: per sequence, the index of each step's skill in :attr:`skill_names`.
+        skill_names: the skills the sequences use, in first-use order.
+        groups: samples grouped by cardinality signature.
+    """
+
+    start: torch.Tensor
+    goal: torch.Tensor
+    sequences: list[tuple[str, ...]]
+    skill_names: list[str]
+    groups: list[Group]
+    skill_ids: list[tuple[int, ...]] = field(default_factory=list)
+
+    def __post_init__(self) -> None:
+        if not self.skill_ids:
+            self.skill_ids = [tuple(self.skill_names.index(n) for n in s) for s in self.sequences]
+
+    @property
+    def size(self) -> int:
+        return sum(g.size for g in self.groups)
+
+    def latents(self) -> list[torch.Tensor]:
+        return [g.latents for g in self.groups]
+
+    def candidate(self, group: int, row: int) -> tuple[tuple[str, ...], list[tuple[int, ...]], list[torch.Tensor]]:
+        """One sample as ``(skeleton, attention per step, subgoals (M_h, D) per step)``."""
+        g = self.groups[group]
+        skeleton = self.sequences[int(g.seq[row])]
+        attention = [tuple(int(i) for i in inp[row]) for inp in g.inputs]
+        subgoals = [g.latents[row, off : off + m].detach().clone() for off, (_, m) in zip(g.offsets, g.signature)]
+        return skeleton, attention, subgoals
+
+
+def signature_of(sequence: Sequence[str], skills: Mapping[str, Skill]) -> tuple[tuple[int, int], ...]:
+    return tuple((skills[n].n_in, skills[n].n_out) for n in sequence)
+
+
+def sample_candidates(
+    start: torch.Tensor,
+    goal: torch.Tensor,
+    sequences: Sequence[Sequence[str]],
+    skills: Mapping[str, Skill],
+    encoder: Encoder,
+    num_samples: int,
+    generator: torch.Generator,
+) -> CandidateBatch:
+    """Draw ``num_samples`` candidates per sequence: random attention per sample and step, prior latents.
+
+    Draw order (hence the result for a seed) is fixed: sequence after sequence, for each the attention of
+    every step and then the latents.
+
+    Args:
+        start: ``(K_0, D)`` the set to start from.
+        goal: ``(G, D)``.
+        sequences: skill-name sequences; each must have enough entities to consume at every step.
+    """
+    if num_samples < 1:
+        raise InputError(f"num_samples must be >= 1, got {num_samples}")
+    if not sequences:
+        raise InputError("no skill sequence to search")
+    sequences = [tuple(s) for s in sequences]
+    names: list[str] = []
+    for s in sequences:
+        names.extend(n for n in s if n not in names)
+    dim = start.shape[-1]
+    parts: dict[tuple[tuple[int, int], ...], list[tuple[int, list[torch.Tensor], list[torch.Tensor], torch.Tensor]]] = {}
+    for si, seq in enumerate(sequences):
+        sig = signature_of(seq, skills)
+        k = start.shape[0]
+        inputs, kept = [], []
+        for n, m in sig:
+            if k < n:
+                raise InputError(f"sequence {list(seq)} consumes {n} entities from a set of {k}")
+            perm = torch.rand(num_samples, k, generator=generator).argsort(dim=1)
+            inputs.append(perm[:, :n].sort(dim=1).values)
+            kept.append(perm[:, n:].sort(dim=1).values)
+            k += m - n
+        total = sum(m for _, m in sig)
+        lat = encoder.sample_prior(num_samples * total, generator).to(start.dtype).reshape(num_samples, total, dim)
+        parts.setdefault(sig, []).append((si, inputs, kept, encoder.clamp(lat)))
+    groups = []
+    for sig, items in parts.items():
+        groups.append(
+            Group(
+                sig,
+                torch.cat([torch.full((num_samples,), si, dtype=torch.long) for si, *_ in items]),
+                [torch.cat([it[1][h] for it in items]) for h in range(len(sig))],
+                [torch.cat([it[2][h] for it in items]) for h in range(len(sig))],
+                torch.cat([it[3] for it in items]),
+            )
+        )
+    return CandidateBatch(start, goal, sequences, names, groups)
+
+
+@dataclass
+class FrozenMatching:
+    """Per group, the matched final-entity and goal-entity indices ``(B, min(K_H, G))`` each."""
+
+    rows: list[torch.Tensor]
+    cols: list[torch.Tensor]
+
+    def select(self, group: int, index: torch.Tensor) -> None:
+        self.rows[group] = self.rows[group][index]
+        self.cols[group] = self.cols[group][index]
+
+
+@dataclass
+class Evaluation:
+    """Per group: ``feasibility (B, H)``, ``cost (B,)``, final states ``(B, K_H, D)``; the matching used."""
+
+    feasibility: list[torch.Tensor]
+    cost: list[torch.Tensor]
+    finals: list[torch.Tensor]
+    matching: FrozenMatching
+
+
+def _take(state: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
+    """``state (B, K, D)`` rows ``index (B, N)`` -> ``(B, N, D)``."""
+    return state.gather(1, index[:, :, None].expand(-1, -1, state.shape[-1]))
+
+
+def roll_states(batch: CandidateBatch, latents: Sequence[torch.Tensor]):
+    """Per group, the consumed/produced tuples of every step and the final state.
+
+    Returns:
+        ``(tuples, finals)``: ``tuples[g][h] = (u_in (B, N_h, D), u_out (B, M_h, D))`` and ``finals[g]``
+        ``(B, K_H, D)``.
+    """
+    tuples, finals = [], []
+    for grp, lat in zip(batch.groups, latents):
+        b = lat.shape[0]
+        state = batch.start.unsqueeze(0).expand(b, -1, -1)
+        steps = []
+        for h, (off, (_, m)) in enumerate(zip(grp.offsets, grp.signature)):
+            new = lat[:, off : off + m]
+            steps.append((_take(state, grp.inputs[h]), new))
+            state = torch.cat([new, _take(state, grp.kept[h])], 1)
+        tuples.append(steps)
+        finals.append(state)
+    return tuples, finals
+
+
+def evaluate(
+    batch: CandidateBatch,
+    latents: Sequence[torch.Tensor],
+    skills: Mapping[str, Skill],
+    cost_model: CostModel,
+    *,
+    frozen: FrozenMatching | None = None,
+) -> Evaluation:
+    """Feasibility of every step and the final set cost of every sample, batched.
+
+    Args:
+        batch: the candidates (their attention; their own latents are ignored).
+        latents: per group, ``(B_g, sum_h M_h, D)`` sub-goal latents (already clamped).
+        frozen: evaluate the cost only on these matched pairs; ``None`` solves the matching.
+
+    The set cost matches ``min(K_H, G)`` pairs: every final entity to a distinct goal entity when
+    ``K_H <= G``, every goal entity to a distinct final entity otherwise (partial windows of the
+    receding-horizon planner may end with a set size other than the goal's).
+    """
+    tuples, finals = roll_states(batch, latents)
+    # -- feasibility: one call per skill over every (group, step, sample) that uses it ---------------
+    longest = max(len(s) for s in batch.skill_ids)
+    seq_skill = torch.tensor([list(s) + [-1] * (longest - len(s)) for s in batch.skill_ids], dtype=torch.long)
+    calls: dict[int, list[tuple[int, int, torch.Tensor | None]]] = {}
+    for g, grp in enumerate(batch.groups):
+        ids = seq_skill[grp.seq]  # (B, H)
+        for h in range(grp.horizon):
+            col = ids[:, h]
+            used = torch.unique(col).tolist()
+            for k in used:
+                idx = None if len(used) == 1 else (col == k).nonzero().squeeze(1)
+                calls.setdefault(k, []).append((g, h, idx))
+    pieces: dict[tuple[int, int], list[tuple[torch.Tensor | None, torch.Tensor]]] = {}
+    for k in sorted(calls):
+        u_in, u_out, sizes = [], [], []
+        for g, h, idx in calls[k]:
+            a, b = tuples[g][h]
+            if idx is not None:
+                a, b = a[idx], b[idx]
+            u_in.append(a)
+            u_out.append(b)
+            sizes.append(a.shape[0])
+        f = skills[batch.skill_names[k]].feasibility(torch.cat(u_in), torch.cat(u_out))
+        for (g, h, idx), part in zip(calls[k], torch.split(f, sizes)):
+            pieces.setdefault((g, h), []).append((idx, part))
+    feas = []
+    for g, grp in enumerate(batch.groups):
+        cols = []
+        for h in range(grp.horizon):
+            ps = pieces[(g, h)]
+            if len(ps) == 1:
+                cols.append(ps[0][1])
+            else:
+                order = torch.cat([i for i, _ in ps])
+                cols.append(torch.cat([p for _, p in ps])[order.argsort()])
+        feas.append(torch.stack(cols, 1))
+    cost, matching = set_costs(batch, finals, cost_model, frozen=frozen)
+    return Evaluation(feas, cost, finals, matching)
+
+
+def set_costs(
+    batch: CandidateBatch,
+    finals: Sequence[torch.Tensor],
+    cost_model: CostModel,
+    *,
+    frozen: FrozenMatching | None = None,
+) -> tuple[list[torch.Tensor], FrozenMatching]:
+    """Per group, ``(B,)`` cost of the final sets against the goal (see :func:`evaluate`), and the matching used."""
+    g_goal = batch.goal.shape[0]
+    if frozen is not None:  # only the matched pairs, all groups in one call
+        a = [_take(f, r) for f, r in zip(finals, frozen.rows)]
+        b = [batch.goal[c] for c in frozen.cols]
+        pairs = [x.shape[0] * x.shape[1] for x in a]
+        flat_a = torch.cat([x.reshape(-1, 1, x.shape[-1]) for x in a])
+        flat_b = torch.cat([x.reshape(-1, 1, x.shape[-1]) for x in b])
+        c = cost_model.pairwise(flat_a, flat_b).reshape(-1)
+        return [part.reshape(x.shape[0], x.shape[1]).sum(1) for part, x in zip(torch.split(c, pairs), a)], frozen
+    n = len(finals)
+    out: list = [None] * n
+    rows: list = [None] * n
+    cols: list = [None] * n
+    by_k: dict[int, list[int]] = {}
+    for g, f in enumerate(finals):
+        by_k.setdefault(f.shape[1], []).append(g)
+    for k, gs in by_k.items():
+        fin = torch.cat([finals[g] for g in gs])
+        c = cost_model.pairwise(fin, batch.goal.unsqueeze(0).expand(fin.shape[0], -1, -1))  # (B, K, G)
+        total, assign = min_cost_matching(c if k <= g_goal else c.transpose(1, 2))
+        sizes = [finals[g].shape[0] for g in gs]
+        for g, part, a in zip(gs, torch.split(total, sizes), torch.split(assign, sizes)):
+            out[g] = part
+            ident = torch.arange(a.shape[1]).expand(a.shape[0], -1).contiguous()
+            rows[g], cols[g] = (ident, a) if k <= g_goal else (a, ident)
+    return out, FrozenMatching(rows, cols)

@@ -1,0 +1,254 @@
+"""The latent plan optimiser shared by every planner.
+
+:func:`search` takes a start set, a goal set and a list of skill sequences, draws ``num_samples``
+candidates per sequence (random attention per sample and step, sampled once; sub-goal latents from the
+encoder prior) and improves all of them at once, either with Adam on the sub-goal latents
+(``method="adam"``, PASTA) or with the cross-entropy method (``method="cem"``, the paper's
+"no gradient" ablation). Every iteration evaluates all samples of all sequences with
+:func:`pasta.planning.batch.evaluate` (one feasibility call per skill, one cost-model call); ``t`` is
+projected into the encoder's centroid box after every update. The best sample by plan score wins.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import torch
+
+from pasta.core import PlanningProblem
+from pasta.core.errors import ConfigError
+from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, sample_candidates
+from pasta.planning.config import LatentPlannerConfig
+from pasta.planning.objective import plan_objective, plan_score
+
+METHODS = ("adam", "cem")
+_ADAM_BETAS = (0.9, 0.999)
+
+
+@dataclass
+class SearchResult:
+    """The best candidate of a :func:`search` and what it cost.
+
+    Attributes:
+        skeleton: skill names of the winner; ``attention``: its consumed indices per step;
+        subgoals: its ``(M_h, D)`` latents per step.
+        score: its plan score in the batched evaluation.
+        per_sequence: for every sequence, ``{"skills", "score" (best), "samples" (left at the end)}``.
+        samples: candidates drawn; ``evaluations``: sample evaluations over all iterations.
+        timings: seconds spent drawing candidates (``sample``) and optimising (``optimise``).
+    """
+
+    skeleton: tuple[str, ...]
+    attention: list[tuple[int, ...]]
+    subgoals: list[torch.Tensor]
+    score: float
+    per_sequence: list[dict[str, Any]]
+    samples: int
+    evaluations: int
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def search(
+    problem: PlanningProblem,
+    sequences: Sequence[Sequence[str]],
+    config: LatentPlannerConfig,
+    generator: torch.Generator,
+    *,
+    method: str = "adam",
+    start: torch.Tensor | None = None,
+    elite_fraction: float = 0.1,
+    min_std: float = 1e-3,
+) -> SearchResult:
+    """Optimise ``config.num_samples`` candidates per sequence and return the best.
+
+    Args:
+        problem: gives the skills, encoder, cost model and goal ``(G, D)``.
+        sequences: skill-name sequences, any lengths; each must be able to consume at every step.
+        generator: seeded source of every random draw (attention, prior latents, CEM noise).
+        method: ``"adam"`` or ``"cem"``.
+        start: ``(K_0, D)`` set to start from (default ``problem.obs``).
+        elite_fraction, min_std: CEM only.
+    """
+    if method not in METHODS:
+        raise ConfigError(f"unknown optimisation method {method!r}; choose one of {METHODS}")
+    if config.matching not in ("auto", "frozen", "recompute"):
+        raise ConfigError(f"planner.matching must be 'auto', 'frozen' or 'recompute', got {config.matching!r}")
+    if config.iterations < 0:
+        raise ConfigError(f"planner.iterations must be >= 0, got {config.iterations}")
+    t0 = time.perf_counter()
+    start = problem.obs if start is None else start
+    batch = sample_candidates(start, problem.goal, sequences, problem.skill_map, problem.encoder, config.num_samples, generator)
+    samples = batch.size
+    t1 = time.perf_counter()
+    opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std)
+    scores = opt.run()
+    t2 = time.perf_counter()
+    result = _select(opt.batch, scores, config.keep_per_sequence)
+    result.samples, result.evaluations = samples, opt.evaluations
+    result.timings = {"sample": t1 - t0, "optimise": t2 - t1}
+    return result
+
+
+class _Optimiser:
+    def __init__(self, problem, batch: CandidateBatch, cfg: LatentPlannerConfig, gen, method, elite_fraction, min_std):
+        self.problem, self.batch, self.cfg, self.gen, self.method = problem, batch, cfg, gen, method
+        self.elite_fraction, self.min_std = elite_fraction, min_std
+        self.skills, self.cost, self.encoder = problem.skill_map, problem.cost, problem.encoder
+        self.freeze = cfg.matching in ("auto", "frozen")
+        self.frozen: FrozenMatching | None = None
+        self.evaluations = 0
+
+    def _objective(self, lat: list[torch.Tensor], grad: bool) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+        cfg = self.cfg
+        with torch.set_grad_enabled(grad):
+            ev = evaluate(self.batch, lat, self.skills, self.cost, frozen=self.frozen)
+            if self.freeze and self.frozen is None:
+                self.frozen = ev.matching
+            obj = [plan_objective(f, c, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor, aux_weight=cfg.aux_weight)
+                   for f, c in zip(ev.feasibility, ev.cost)]
+        self.evaluations += self.batch.size
+        # Ranking for CEM elites: log of the unfloored score. The floor only exists to shape gradients;
+        # without it, samples far from feasible still say which of them is closer.
+        self._log_score = [f.detach().clamp(min=1e-30).log().sum(-1) - cfg.cost_weight * c.detach()
+                           for f, c in zip(ev.feasibility, ev.cost)]
+        scores = [plan_score(f.detach(), c.detach(), cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
+                  for f, c in zip(ev.feasibility, ev.cost)]
+        return obj, scores
+
+    def run(self) -> list[torch.Tensor]:
+        """Optimise in place (``self.batch`` ends with the final latents); return the final scores per group."""
+        return self._adam() if self.method == "adam" else self._cem()
+
+    # -- gradient: Adam on the sub-goal latents ----------------------------------------------------
+    def _adam(self) -> list[torch.Tensor]:
+        cfg, iters = self.cfg, self.cfg.iterations
+        lat = [self.encoder.clamp(x) for x in self.batch.latents()]
+        m = [torch.zeros_like(x) for x in lat]
+        v = [torch.zeros_like(x) for x in lat]
+        milestones = set()
+        if cfg.successive_halving:
+            milestones = {round(f * iters) for f in cfg.halving_points if 0 < f < 1} - {0, iters}
+        b1, b2 = _ADAM_BETAS
+        for it in range(iters + 1):
+            last = it == iters
+            xs = [x.detach().requires_grad_(not last) for x in lat]
+            obj, scores = self._objective(xs, grad=not last)
+            if last:
+                break
+            grads = torch.autograd.grad(-sum(o.sum() for o in obj), xs, allow_unused=True)
+            step = it + 1
+            c1, c2 = 1 - b1**step, 1 - b2**step
+            new = []
+            for x, g, mi, vi in zip(xs, grads, m, v):
+                g = torch.zeros_like(x) if g is None else g
+                mi.mul_(b1).add_(g, alpha=1 - b1)
+                vi.mul_(b2).addcmul_(g, g, value=1 - b2)
+                upd = (mi / c1) / ((vi / c2).sqrt() + cfg.adam_eps)
+                new.append(self.encoder.clamp(x.detach() - cfg.lr * upd))
+            lat = new
+            if step in milestones:
+                keep = self._halve(self._log_score)
+                lat = [x[k] for x, k in zip(lat, keep)]
+                m = [x[k] for x, k in zip(m, keep)]
+                v = [x[k] for x, k in zip(v, keep)]
+        self._store(lat)
+        return scores
+
+    def _halve(self, obj: list[torch.Tensor]) -> list[torch.Tensor]:
+        """Keep the better half (all sequences together) plus each sequence's best few; shrink the batch."""
+        values = torch.cat(obj)
+        seq = torch.cat([g.seq for g in self.batch.groups])
+        n = values.shape[0]
+        keep = torch.zeros(n, dtype=torch.bool)
+        if self.cfg.halving_scope == "global":
+            order = torch.argsort(-values, stable=True)
+            keep[order[: math.ceil(n / 2)]] = True
+            keep[_top_per_label(values, seq, self.cfg.keep_per_sequence)] = True
+        else:
+            rank = _rank_within(values, seq)
+            size = torch.bincount(seq, minlength=len(self.batch.sequences))
+            keep[rank < torch.maximum((size + 1) // 2, torch.tensor(self.cfg.keep_per_sequence))[seq]] = True
+        index = [k.nonzero().squeeze(1) for k in torch.split(keep, [g.size for g in self.batch.groups])]
+        self._select_rows(index)
+        return index
+
+    def _select_rows(self, index: list[torch.Tensor]) -> None:
+        self.batch.groups = [g.select(i) for g, i in zip(self.batch.groups, index)]
+        if self.frozen is not None:
+            self.frozen = FrozenMatching([r[i] for r, i in zip(self.frozen.rows, index)],
+                                         [c[i] for c, i in zip(self.frozen.cols, index)])
+
+    def _store(self, lat: list[torch.Tensor]) -> None:
+        for g, x in zip(self.batch.groups, lat):
+            g.latents = x.detach()
+
+    # -- no gradient: cross-entropy method ------------------------------------------------------------
+    def _cem(self) -> list[torch.Tensor]:
+        """Elitist CEM: one Gaussian per (sequence, attention structure); its elites stay, the rest are redrawn."""
+        lat = [self.encoder.clamp(x) for x in self.batch.latents()]
+        clusters = []
+        for g in self.batch.groups:
+            key = torch.cat([g.seq[:, None], *g.inputs], 1)
+            clusters.append(torch.unique(key, dim=0, return_inverse=True)[1])
+        scores: list[torch.Tensor] = []
+        for it in range(self.cfg.iterations + 1):
+            _, scores = self._objective(lat, grad=False)
+            if it == self.cfg.iterations:
+                break
+            new = []
+            for x, r, cl in zip(lat, self._log_score, clusters):
+                new.append(self._cem_step(x, r, cl))
+            lat = new
+        self._store(lat)
+        return scores
+
+    def _cem_step(self, x: torch.Tensor, obj: torch.Tensor, cluster: torch.Tensor) -> torch.Tensor:
+        b = x.shape[0]
+        n_cl = int(cluster.max()) + 1
+        size = torch.bincount(cluster, minlength=n_cl)
+        n_elite = (size.double() * self.elite_fraction).ceil().long().clamp(min=1)
+        elite = _rank_within(obj, cluster) < n_elite[cluster]
+        w = elite.to(x.dtype)[:, None, None]
+        count = n_elite.to(x.dtype)[:, None, None]
+        mean = torch.zeros((n_cl, *x.shape[1:]), dtype=x.dtype).index_add_(0, cluster, x * w) / count
+        dev = (x - mean[cluster]) ** 2 * w
+        var = torch.zeros_like(mean).index_add_(0, cluster, dev) / (count - 1).clamp(min=1)
+        std = var.sqrt().clamp(min=self.min_std)
+        noise = torch.randn(x.shape, generator=self.gen, dtype=x.dtype)
+        drawn = self.encoder.clamp(mean[cluster] + std[cluster] * noise)
+        return torch.where(elite[:, None, None], x, drawn) if b else x
+
+
+def _rank_within(values: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
+    """``(B,)`` rank of each value among those with its label (0 = largest; ties by position)."""
+    order = torch.argsort(-values, stable=True)
+    order = order[torch.argsort(labels[order], stable=True)]
+    counts = torch.bincount(labels, minlength=int(labels.max()) + 1 if labels.numel() else 0)
+    starts = torch.cumsum(counts, 0) - counts
+    rank = torch.empty_like(labels)
+    rank[order] = torch.arange(labels.shape[0]) - starts[labels[order]]
+    return rank
+
+
+def _top_per_label(values: torch.Tensor, labels: torch.Tensor, k: int) -> torch.Tensor:
+    return (_rank_within(values, labels) < k).nonzero().squeeze(1)
+
+
+def _select(batch: CandidateBatch, scores: list[torch.Tensor], top_k: int) -> SearchResult:
+    flat = torch.cat(scores)
+    seq = torch.cat([g.seq for g in batch.groups])
+    best = int(torch.argmax(flat))  # first maximum: deterministic
+    sizes = [g.size for g in batch.groups]
+    group = next(i for i, c in enumerate(torch.tensor(sizes).cumsum(0).tolist()) if best < c)
+    row = best - sum(sizes[:group])
+    skeleton, attention, subgoals = batch.candidate(group, row)
+    per_sequence = []
+    for si, s in enumerate(batch.sequences):
+        mine = flat[seq == si]
+        top = mine.topk(min(top_k, mine.numel())).values.tolist() if mine.numel() else []
+        per_sequence.append({"skills": list(s), "score": top[0] if top else 0.0, "top_scores": top, "samples": int(mine.numel())})
+    return SearchResult(skeleton, attention, subgoals, float(flat[best]), per_sequence, 0, 0)

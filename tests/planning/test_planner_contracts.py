@@ -1,0 +1,27 @@
+"""The three built-in planners honour the planner contract on the analytic problem (known optimum)."""
+
+from __future__ import annotations
+
+from pasta.plugins.testing import PlannerContract
+
+FAST = {"iterations": 100}
+
+
+class TestExhaustive(PlannerContract):
+    planner_name = "exhaustive"
+    planner_overrides = {**FAST, "num_samples": 128}
+
+
+class TestExhaustiveHalving(PlannerContract):
+    planner_name = "exhaustive"
+    planner_overrides = {**FAST, "num_samples": 256, "successive_halving": True}
+
+
+class TestSampling(PlannerContract):
+    planner_name = "sampling"
+    planner_overrides = {**FAST, "num_samples": 512}
+
+
+class TestRecedingHorizon(PlannerContract):
+    planner_name = "receding_horizon"
+    planner_overrides = {**FAST, "num_samples": 128, "window": 3}
