@@ -1,0 +1,40 @@
+"""Config dataclasses of the learned plugins (no torch import: the plugin registry reads these)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass
+class PointVAEEncoderConfig:
+    """Config of the ``pc_vae`` encoder.
+
+    Attributes:
+        weights: directory of a trained VAE (``pasta train vae ... out=models`` writes ``models/vae``).
+        encode_points: points fed to the PointNet per entity (a fixed, deterministic subset).
+        device: torch device of the network.
+    """
+
+    weights: str = "models/vae"
+    encode_points: int = 512
+    device: str = "cpu"
+
+
+@dataclass
+class FlatEncoderConfig(PointVAEEncoderConfig):
+    """Config of the ``flat`` encoder (the whole scene as one latent; Flat 3D baseline)."""
+
+    weights: str = "models/flat_vae"
+
+
+@dataclass
+class SetCostConfig:
+    """Config of the ``set_cost`` cost model.
+
+    Attributes:
+        weights: directory of a trained cost network (``pasta train cost ... out=models`` writes ``models/cost``).
+        device: torch device of the network.
+    """
+
+    weights: str = "models/cost"
+    device: str = "cpu"

@@ -1,0 +1,104 @@
+"""Training of the pairwise cost network :class:`~pasta.nn.cost.PairCost`.
+
+Pairs of entities are drawn from the demonstration steps: a share from the same demonstration (close
+shapes and positions, small distances) and the rest from anywhere (large distances). The label is the
+Chamfer distance (:func:`pasta.core.metrics.chamfer`) of the two real entity clouds; the network
+regresses ``log(chamfer + EPS)`` with a mean squared error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from pasta.core.errors import InputError
+from pasta.nn.cost import EPS, MODULE, PairCost
+from pasta.train.latents import EncodedDemo
+
+
+@dataclass
+class CostTrainConfig:
+    """Cost settings (``key=value`` on ``pasta train cost``).
+
+    Attributes:
+        hidden: network width.
+        pairs_per_entity: pairs drawn per entity.
+        same_demo_fraction: share of pairs taken inside one demonstration.
+        label_points: points per entity used for the Chamfer label.
+        num_points, stride, val_fraction: as for the VAE.
+        vae: trained VAE directory (default ``OUT/vae``).
+    """
+
+    hidden: int = 256
+    pairs_per_entity: int = 8
+    same_demo_fraction: float = 0.5
+    label_points: int = 400
+    num_points: int = 1000
+    stride: int = 1
+    val_fraction: float = 0.2
+    vae: str = ""
+
+
+def entity_pairs(demos: list[EncodedDemo], cfg: CostTrainConfig, *, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """``(a (B, D), b (B, D), chamfer (B,))`` pairs of entities of ``demos`` with their true distance."""
+    from pasta.core.metrics import chamfer
+
+    latents = torch.cat([u for d in demos for u in d.latents])
+    clouds = torch.cat([c[:, : cfg.label_points] for d in demos for c in d.clouds])
+    owner = torch.cat([torch.full((len(u),), k) for k, d in enumerate(demos) for u in d.latents])
+    if len(latents) < 2:
+        raise InputError("need at least two entities to train the cost model")
+    rng = np.random.default_rng(seed)
+    first = np.repeat(np.arange(len(latents)), cfg.pairs_per_entity)
+    second = rng.integers(0, len(latents), len(first))
+    same = rng.random(len(first)) < cfg.same_demo_fraction
+    members = [np.flatnonzero(owner.numpy() == k) for k in range(len(demos))]
+    for i in np.flatnonzero(same):
+        group = members[int(owner[first[i]])]
+        second[i] = group[rng.integers(len(group))]
+    first_t, second_t = torch.from_numpy(first), torch.from_numpy(second)
+    labels = torch.cat([chamfer(clouds[first_t[i : i + 256]], clouds[second_t[i : i + 256]]) for i in range(0, len(first), 256)])
+    return latents[first_t], latents[second_t], labels
+
+
+class CostTask:
+    """:class:`pasta.train.loop.TrainTask` of the pairwise cost."""
+
+    module = MODULE
+
+    def __init__(self, train: tuple, val: tuple, latent_dim: int, cfg: CostTrainConfig, *, seed: int = 0) -> None:
+        self.cfg = cfg
+        torch.manual_seed(seed)
+        self.model = PairCost(latent_dim, cfg.hidden)
+        self.train_a, self.train_b, self.train_c = train
+        self.val_a, self.val_b, self.val_c = val if len(val[0]) else train
+        with torch.no_grad():  # start at the mean log-distance so early epochs are not spent on the offset
+            self.model.net[-1].bias.fill_(float(torch.log(self.train_c + EPS).mean()))
+
+    def config(self) -> dict[str, Any]:
+        return {**self.model.config(), "train": asdict(self.cfg)}
+
+    def batches(self, batch_size: int, generator: torch.Generator):
+        order = torch.randperm(len(self.train_a), generator=generator)
+        for i in range(0, len(order), batch_size):
+            yield order[i : i + batch_size]
+
+    def loss(self, batch: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        pred = self.model.log_cost(self.train_a[batch], self.train_b[batch])
+        return (pred - torch.log(self.train_c[batch] + EPS)).pow(2).mean()
+
+    @torch.no_grad()
+    def validate(self) -> dict[str, float]:
+        from scipy.stats import spearmanr
+
+        log_pred = self.model.log_cost(self.val_a, self.val_b)
+        pred = self.model.cost(self.val_a, self.val_b)
+        rho = spearmanr(pred.numpy(), self.val_c.numpy()).statistic
+        return {
+            "val_loss": float((log_pred - torch.log(self.val_c + EPS)).pow(2).mean()),
+            "val_spearman": float(rho),
+            "val_mae": float((pred - self.val_c).abs().mean()),
+        }

@@ -1,0 +1,154 @@
+"""Training of one skill's :class:`~pasta.nn.feasibility.SetFeasibility`.
+
+- Positives: a state and a later state of the same demonstration of the skill, after removing the
+  entities unchanged between them (Chamfer < ``unchanged_threshold``); kept when exactly ``N_k`` inputs
+  and ``M_k`` outputs remain. Training adds Gaussian noise to ``z`` (``z_noise``) and ``t`` (``t_noise``).
+- Hard negatives: ``hard_per_positive`` copies of each positive with one slot replaced by a prior sample.
+- Random negatives: every slot a prior sample (as many tuples as positives in the batch).
+- Loss: binary cross-entropy, weighted 0.5 (positives) / 0.25 (hard) / 0.25 (random).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+
+from pasta.core.errors import InputError
+from pasta.nn.feasibility import SetFeasibility
+from pasta.nn.loading import FEASIBILITY_MODULE
+from pasta.train.latents import EncodedDemo, changed_entities
+
+WEIGHTS = (0.5, 0.25, 0.25)
+
+
+@dataclass
+class FeasibilityTrainConfig:
+    """Feasibility settings (``key=value`` on ``pasta train feasibility``).
+
+    Attributes:
+        skill: the skill whose demonstrations are the positives (required).
+        hidden: network width.
+        hard_per_positive: hard negatives per positive.
+        z_noise, t_noise: std of the Gaussian noise on ``z`` and ``t`` of positives (training only).
+        unchanged_threshold: Chamfer below which an entity counts as unchanged.
+        match_points: points per entity used for that Chamfer.
+        max_pairs_per_demo: positives drawn per demonstration at most (seeded).
+        num_points, stride, val_fraction: as for the VAE.
+        vae: trained VAE directory (default ``OUT/vae``).
+    """
+
+    skill: str = ""
+    hidden: int = 256
+    hard_per_positive: int = 10
+    z_noise: float = 0.02
+    t_noise: float = 0.01
+    unchanged_threshold: float = 5e-4
+    match_points: int = 200
+    max_pairs_per_demo: int = 200
+    num_points: int = 1000
+    stride: int = 1
+    val_fraction: float = 0.2
+    vae: str = ""
+
+
+def positive_tuples(
+    demos: list[EncodedDemo], n_in: int, n_out: int, cfg: FeasibilityTrainConfig, *, seed: int = 0
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(U_in (B, N, D), U_out (B, M, D))`` of every valid (state, later state) pair of ``demos``."""
+    u_in, u_out = [], []
+    for k, demo in enumerate(demos):
+        steps = len(demo.latents)
+        pairs = [(a, b) for a in range(steps) for b in range(a + 1, steps)]
+        rng = np.random.default_rng([seed, k])
+        if len(pairs) > cfg.max_pairs_per_demo:
+            pairs = [pairs[i] for i in sorted(rng.choice(len(pairs), cfg.max_pairs_per_demo, replace=False))]
+        for a, b in pairs:
+            if len(demo.latents[a]) < n_in or len(demo.latents[b]) < n_out:
+                continue
+            ia, ib = changed_entities(demo.clouds[a], demo.clouds[b], threshold=cfg.unchanged_threshold, points=cfg.match_points)
+            if len(ia) == n_in and len(ib) == n_out:
+                u_in.append(demo.latents[a][ia])
+                u_out.append(demo.latents[b][ib])
+    if not u_in:
+        return torch.empty(0, n_in, 0), torch.empty(0, n_out, 0)
+    return torch.stack(u_in), torch.stack(u_out)
+
+
+def hard_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, prior: Any, generator: torch.Generator):
+    """``copies`` versions of each tuple with one uniformly chosen slot replaced by a prior sample."""
+    tuples = torch.cat([u_in, u_out], 1).repeat(copies, 1, 1)  # (B * copies, N + M, D)
+    b, slots, _ = tuples.shape
+    which = torch.randint(slots, (b,), generator=generator)
+    tuples[torch.arange(b), which] = prior(b, generator)
+    n = u_in.shape[1]
+    return tuples[:, :n], tuples[:, n:]
+
+
+class FeasibilityTask:
+    """:class:`pasta.train.loop.TrainTask` of one skill's feasibility."""
+
+    module = FEASIBILITY_MODULE
+
+    def __init__(self, skill: str, n_in: int, n_out: int, train: tuple, val: tuple, encoder: Any,
+                 cfg: FeasibilityTrainConfig, *, seed: int = 0) -> None:
+        if len(train[0]) == 0:
+            raise InputError(f"no positive ({n_in} -> {n_out} entities) pairs in the training demonstrations of '{skill}'")
+        self.skill, self.cfg, self.encoder = skill, cfg, encoder
+        self.z_dim = encoder.z_dim
+        torch.manual_seed(seed)
+        self.model = SetFeasibility(n_in, n_out, encoder.latent_dim, cfg.hidden)
+        self.train_in, self.train_out = train
+        self.val_in, self.val_out = val if len(val[0]) else train
+        gen = torch.Generator().manual_seed(seed + 1)
+        self.val_hard = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive, self.prior, gen)
+        m = len(self.val_in)
+        self.val_random = (self.prior(m * n_in, gen).view(m, n_in, -1), self.prior(m * n_out, gen).view(m, n_out, -1))
+
+    def prior(self, n: int, generator: torch.Generator) -> torch.Tensor:
+        return self.encoder.sample_prior(n, generator)
+
+    def config(self) -> dict[str, Any]:
+        return {**self.model.config(), "skill": self.skill, "train": asdict(self.cfg)}
+
+    def batches(self, batch_size: int, generator: torch.Generator):
+        order = torch.randperm(len(self.train_in), generator=generator)
+        for i in range(0, len(order), batch_size):
+            yield order[i : i + batch_size]
+
+    def _noisy(self, u: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        std = torch.full((u.shape[-1],), self.cfg.t_noise)
+        std[: self.z_dim] = self.cfg.z_noise
+        return u + torch.randn(u.shape, generator=generator) * std
+
+    def loss(self, batch: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+        u_in, u_out = self._noisy(self.train_in[batch], generator), self._noisy(self.train_out[batch], generator)
+        hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
+        b, n, m = len(batch), u_in.shape[1], u_out.shape[1]
+        rand = (self.prior(b * n, generator).view(b, n, -1), self.prior(b * m, generator).view(b, m, -1))
+        return self._weighted((u_in, u_out), hard, rand)
+
+    def _weighted(self, pos, hard, rand) -> torch.Tensor:
+        terms = []
+        for (a, b), label, w in zip((pos, hard, rand), (1.0, 0.0, 0.0), WEIGHTS):
+            logits = self.model.logits(a, b)
+            terms.append(w * F.binary_cross_entropy_with_logits(logits, torch.full_like(logits, label)))
+        return sum(terms)
+
+    @torch.no_grad()
+    def validate(self) -> dict[str, float]:
+        from sklearn.metrics import roc_auc_score
+
+        pos = self.model(self.val_in, self.val_out).numpy()
+        hard = self.model(*self.val_hard).numpy()
+        rand = self.model(*self.val_random).numpy()
+        labels = np.r_[np.ones(len(pos)), np.zeros(len(hard))]
+        labels_r = np.r_[np.ones(len(pos)), np.zeros(len(rand))]
+        return {
+            "val_loss": float(self._weighted((self.val_in, self.val_out), self.val_hard, self.val_random)),
+            "val_auc_hard": float(roc_auc_score(labels, np.r_[pos, hard])),
+            "val_auc_random": float(roc_auc_score(labels_r, np.r_[pos, rand])),
+        }

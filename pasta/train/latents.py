@@ -1,0 +1,60 @@
+"""Entities of every demonstration step, with their latents: the input of feasibility and cost training."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from pasta.train.data import Demo, demo_entities
+
+
+@dataclass
+class EncodedDemo:
+    """One demonstration as entity sets.
+
+    Attributes:
+        demo: key (``"cut/00003"``); skill: its skill.
+        latents: per step, ``(K_t, D)`` latents.
+        clouds: per step, ``(K_t, P, 3)`` entity clouds (float32 tensors).
+    """
+
+    demo: str
+    skill: str
+    latents: list[torch.Tensor]
+    clouds: list[torch.Tensor]
+
+
+def encode_demos(demos: list[Demo], encoder: Any, *, num_points: int = 1000, stride: int = 1, seed: int = 0) -> list[EncodedDemo]:
+    """Decompose every step of every demonstration and encode its entities with ``encoder``."""
+    out = []
+    for demo in demos:
+        ents = demo_entities(demo, num_points=num_points, stride=stride, seed=seed)
+        clouds = [torch.from_numpy(c) for c in ents.clouds]
+        sizes = [len(c) for c in clouds]
+        with torch.no_grad():
+            latents = encoder.encode(torch.cat(clouds)).split(sizes)
+        out.append(EncodedDemo(demo.key, demo.skill, list(latents), clouds))
+    return out
+
+
+def changed_entities(a: torch.Tensor, b: torch.Tensor, *, threshold: float = 5e-4, points: int = 200) -> tuple[list[int], list[int]]:
+    """Indices of the entities of ``a (Ka, P, 3)`` and ``b (Kb, P, 3)`` left after removing unchanged pairs.
+
+    Pairs are removed greedily, closest first, while their Chamfer distance (on the first ``points``
+    points of each cloud) is below ``threshold``.
+    """
+    from pasta.core.metrics import chamfer
+
+    d = chamfer(a[:, None, :points], b[None, :, :points]).numpy()  # (Ka, Kb)
+    keep_a, keep_b = set(range(len(a))), set(range(len(b)))
+    for flat in np.argsort(d, axis=None):
+        i, j = np.unravel_index(flat, d.shape)
+        if d[i, j] >= threshold:
+            break
+        if i in keep_a and j in keep_b:
+            keep_a.discard(int(i))
+            keep_b.discard(int(j))
+    return sorted(keep_a), sorted(keep_b)

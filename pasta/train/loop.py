@@ -1,0 +1,158 @@
+"""The one training loop shared by every learned module.
+
+A module plugs in as a :class:`TrainTask`: its network, its batches, its loss and its validation. The
+loop seeds every epoch from ``(seed, epoch)`` (so a resumed run repeats exactly what an uninterrupted
+run would do), shows a rich progress bar on stderr, keeps the best weights by validation loss in
+``OUT/model.*`` and the last state (weights, optimiser, history) in ``OUT/last.*``, and resumes from
+``OUT/last.*`` when it exists.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import torch
+
+from pasta.core.errors import ConfigError
+from pasta.io.checkpoint import IncompatibleCheckpointError, checkpoint_exists, load_checkpoint, save_checkpoint
+
+
+@dataclass
+class LoopConfig:
+    """Settings of :func:`fit` (every one can be set as ``key=value`` on ``pasta train``).
+
+    Attributes:
+        epochs: passes over the training data.
+        batch_size: examples per optimiser step.
+        lr: Adam learning rate.
+        weight_decay: Adam weight decay.
+        seed: base seed; epoch ``e`` uses a generator seeded with ``(seed, e)``.
+        resume: continue from ``OUT/last.*`` when present.
+        progress: draw the progress bar (stderr).
+    """
+
+    epochs: int = 30
+    batch_size: int = 64
+    lr: float = 1e-3
+    weight_decay: float = 0.0
+    seed: int = 0
+    resume: bool = True
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        if self.epochs < 1 or self.batch_size < 1 or not self.lr > 0:
+            raise ConfigError(f"epochs and batch_size must be >= 1 and lr > 0, got {self.epochs}, {self.batch_size}, {self.lr}")
+
+
+class TrainTask(Protocol):
+    """What :func:`fit` needs from a module.
+
+    Attributes:
+        module: checkpoint module name (``"vae"``, ``"feasibility"``, ``"set_cost"``).
+        model: the network; its ``state_dict`` is what is saved.
+    """
+
+    module: str
+    model: torch.nn.Module
+
+    def config(self) -> dict[str, Any]:
+        """JSON description saved beside the weights (sizes, normalisation, skill...)."""
+
+    def batches(self, batch_size: int, generator: torch.Generator) -> Iterable[Any]:
+        """One epoch of training batches, shuffled with ``generator``."""
+
+    def loss(self, batch: Any, generator: torch.Generator) -> torch.Tensor:
+        """Scalar training loss of ``batch`` (``generator`` for on-the-fly noise and negatives)."""
+
+    def validate(self) -> dict[str, float]:
+        """Held-out figures; must include ``"val_loss"`` (lower is better)."""
+
+
+@dataclass
+class FitResult:
+    best_epoch: int
+    best_val_loss: float
+    epochs_run: int
+    history: list[dict[str, float]] = field(default_factory=list)
+
+
+def fit(task: TrainTask, cfg: LoopConfig, out_dir: str | Path) -> FitResult:
+    """Train ``task.model`` for ``cfg.epochs`` epochs; leave it holding the best validation weights."""
+    out = Path(out_dir)
+    optimiser = torch.optim.Adam(task.model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    start, best, history = _resume(task, optimiser, cfg, out) if cfg.resume else (0, (math.inf, -1), [])
+    with _progress(cfg.progress) as bar:
+        job = bar.add_task(task.module, total=cfg.epochs, completed=start)
+        for epoch in range(start, cfg.epochs):
+            gen = torch.Generator().manual_seed(cfg.seed * 1_000_003 + epoch)
+            task.model.train()
+            losses = []
+            for batch in task.batches(cfg.batch_size, gen):
+                loss = task.loss(batch, gen)
+                optimiser.zero_grad(set_to_none=True)
+                loss.backward()
+                optimiser.step()
+                losses.append(float(loss.detach()))
+            task.model.eval()
+            with torch.no_grad():
+                figures = task.validate()
+            record = {"epoch": epoch, "train_loss": sum(losses) / max(len(losses), 1), **figures}
+            history.append(record)
+            if figures["val_loss"] < best[0]:
+                best = (figures["val_loss"], epoch)
+                save_checkpoint(out, module=task.module, tensors=task.model.state_dict(), config=task.config(),
+                                state={"epoch": epoch, "val_loss": figures["val_loss"], "loop": asdict(cfg)})
+            _save_last(task, optimiser, cfg, out, epoch, best, history)
+            bar.update(job, advance=1, description=f"{task.module} val {figures['val_loss']:.4g} (best {best[0]:.4g} @{best[1]})")
+    if best[1] >= 0:
+        task.model.load_state_dict(load_checkpoint(out, module=task.module).tensors)
+    return FitResult(best[1], best[0], cfg.epochs - start, history)
+
+
+def _save_last(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfig, out: Path, epoch: int,
+               best: tuple[float, int], history: list[dict[str, float]]) -> None:
+    tensors = {f"model.{k}": v for k, v in task.model.state_dict().items()}
+    opt = optimiser.state_dict()
+    for idx, slots in opt["state"].items():
+        for key, value in slots.items():
+            tensors[f"optim.{idx}.{key}"] = torch.as_tensor(value)
+    state = {"epoch": epoch, "best_val_loss": best[0] if math.isfinite(best[0]) else None, "best_epoch": best[1],
+             "history": history, "param_groups": opt["param_groups"], "loop": asdict(cfg)}
+    save_checkpoint(out, module=task.module, tensors=tensors, config=task.config(), state=state, name="last")
+
+
+def _resume(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfig, out: Path):
+    if not checkpoint_exists(out, "last"):
+        return 0, (math.inf, -1), []
+    ckpt = load_checkpoint(out, module=task.module, name="last")
+    if ckpt.config != task.config():
+        diff = sorted(k for k in set(ckpt.config) | set(task.config()) if ckpt.config.get(k) != task.config().get(k))
+        raise IncompatibleCheckpointError(
+            f"cannot resume from {ckpt.path}: its config differs in {', '.join(diff)}; "
+            "use a new out= directory or resume=false"
+        )
+    task.model.load_state_dict({k[6:]: v for k, v in ckpt.tensors.items() if k.startswith("model.")})
+    slots: dict[int, dict[str, torch.Tensor]] = {}
+    for key, value in ckpt.tensors.items():
+        if key.startswith("optim."):
+            _, idx, name = key.split(".", 2)
+            slots.setdefault(int(idx), {})[name] = value
+    optimiser.load_state_dict({"state": slots, "param_groups": ckpt.state["param_groups"]})
+    for group in optimiser.param_groups:
+        group["lr"] = cfg.lr
+    best_val = ckpt.state["best_val_loss"]
+    best = (math.inf if best_val is None else best_val, ckpt.state["best_epoch"])
+    return ckpt.state["epoch"] + 1, best, list(ckpt.state["history"])
+
+
+def _progress(enabled: bool):
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                    console=Console(file=sys.stderr), disable=not enabled, transient=False)

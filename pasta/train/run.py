@@ -1,0 +1,144 @@
+"""``pasta train`` as a function: read a dataset, split it by demonstration, fit one module, report.
+
+:func:`train` is what the command calls; tests call it directly. Each module writes into its own
+directory under the models root ``out`` (see :mod:`pasta.nn`) and leaves ``metrics.json`` there.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from pasta.core.errors import ConfigError, did_you_mean
+from pasta.nn import COST_DIR, FEASIBILITY_DIR, FLAT_VAE_DIR, VAE_DIR
+from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
+from pasta.train.data import load_demos, split_by_demo
+from pasta.train.feasibility import FeasibilityTask, FeasibilityTrainConfig, positive_tuples
+from pasta.train.latents import encode_demos
+from pasta.train.loop import LoopConfig, fit
+from pasta.train.vae import VAETask, VAETrainConfig, collect_clouds, vae_metrics
+
+MODULES = ("vae", "feasibility", "cost")
+_MODULE_CONFIG = {"vae": VAETrainConfig, "feasibility": FeasibilityTrainConfig, "cost": CostTrainConfig}
+#: loop defaults that differ per module
+_LOOP_DEFAULTS: dict[str, dict[str, Any]] = {
+    "vae": {"epochs": 40, "batch_size": 32, "lr": 1e-3},
+    "feasibility": {"epochs": 30, "batch_size": 64, "lr": 1e-3},
+    "cost": {"epochs": 60, "batch_size": 256, "lr": 1e-3},
+}
+
+
+def parse_overrides(module: str, overrides: Mapping[str, str]) -> tuple[LoopConfig, Any]:
+    """Split ``key=value`` strings into the loop config and the module's config, typed and validated."""
+    if module not in MODULES:
+        raise ConfigError(f"unknown module '{module}'{did_you_mean(module, MODULES)}; choose one of {', '.join(MODULES)}")
+    loop_fields = {f.name: f for f in dataclasses.fields(LoopConfig)}
+    mod_cls = _MODULE_CONFIG[module]
+    mod_fields = {f.name: f for f in dataclasses.fields(mod_cls)}
+    loop_kw: dict[str, Any] = dict(_LOOP_DEFAULTS[module])
+    mod_kw: dict[str, Any] = {}
+    for key, raw in overrides.items():
+        if key in loop_fields:
+            loop_kw[key] = _convert(key, raw, loop_fields[key].type)
+        elif key in mod_fields:
+            mod_kw[key] = _convert(key, raw, mod_fields[key].type)
+        else:
+            valid = sorted(loop_fields) + sorted(mod_fields)
+            raise ConfigError(f"unknown key '{key}' for `pasta train {module}`{did_you_mean(key, valid)}; valid keys: {', '.join(valid)}")
+    return LoopConfig(**loop_kw), mod_cls(**mod_kw)
+
+
+def _convert(key: str, raw: Any, kind: Any) -> Any:
+    kind = kind if isinstance(kind, str) else getattr(kind, "__name__", str(kind))
+    if not isinstance(raw, str):
+        return raw
+    try:
+        if kind == "bool":
+            if raw.lower() not in {"true", "false", "1", "0", "yes", "no"}:
+                raise ValueError(raw)
+            return raw.lower() in {"true", "1", "yes"}
+        if kind == "int":
+            return int(raw)
+        if kind == "float":
+            return float(raw)
+    except ValueError:
+        raise ConfigError(f"{key}={raw!r}: expected a {kind}") from None
+    return raw
+
+
+def train(module: str, data: str | Path, out: str | Path, overrides: Mapping[str, str] | None = None) -> dict[str, Any]:
+    """Train ``module`` (``vae``, ``feasibility`` or ``cost``) on dataset ``data`` into models root ``out``.
+
+    Returns:
+        the held-out figures, also written to ``metrics.json`` beside the weights.
+    """
+    loop, cfg = parse_overrides(module, overrides or {})
+    return {"vae": _train_vae, "feasibility": _train_feasibility, "cost": _train_cost}[module](Path(data), Path(out), loop, cfg)
+
+
+def _split(data: Path, cfg: Any, loop: LoopConfig, skills: list[str] | None = None):
+    demos = load_demos(data, skills)
+    train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=loop.seed)
+    if not val:
+        print("pasta train: warning: too few demonstrations to hold one out; validating on the training set", file=sys.stderr)
+        val = train
+    return train, val
+
+
+def _finish(directory: Path, module: str, result: Any, figures: dict[str, Any], data: Path, n_train: int, n_val: int) -> dict[str, Any]:
+    metrics = {"module": module, "data": str(data), "train_demos": n_train, "heldout_demos": n_val,
+               "best_epoch": result.best_epoch, "best_val_loss": result.best_val_loss, **figures}
+    (directory / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    return metrics
+
+
+def _train_vae(data: Path, out: Path, loop: LoopConfig, cfg: VAETrainConfig) -> dict[str, Any]:
+    directory = out / (FLAT_VAE_DIR if cfg.flat else VAE_DIR)
+    train, val = _split(data, cfg, loop)
+    task = VAETask(collect_clouds(train, cfg, seed=loop.seed), collect_clouds(val, cfg, seed=loop.seed), cfg, seed=loop.seed)
+    result = fit(task, loop, directory)
+    return _finish(directory, "vae", result, vae_metrics(task, directory), data, len(train), len(val))
+
+
+def _load_encoder(out: Path, path: str):
+    from pasta.nn.config import PointVAEEncoderConfig
+    from pasta.nn.encoders import PointVAEEncoder
+
+    return PointVAEEncoder(PointVAEEncoderConfig(weights=path or str(out / VAE_DIR)))
+
+
+def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: FeasibilityTrainConfig) -> dict[str, Any]:
+    from pasta.plugins import get_plugins
+
+    if not cfg.skill:
+        raise ConfigError("`pasta train feasibility` needs skill=NAME (a registered skill)")
+    spec = get_plugins().skills.info(cfg.skill).spec
+    encoder = _load_encoder(out, cfg.vae)
+    train, val = _split(data, cfg, loop, [cfg.skill])
+    enc = {name: encode_demos(d, encoder, num_points=cfg.num_points, stride=cfg.stride, seed=loop.seed)
+           for name, d in (("train", train), ("val", val))}
+    tuples = {name: positive_tuples(e, spec.n_in, spec.n_out, cfg, seed=loop.seed) for name, e in enc.items()}
+    task = FeasibilityTask(cfg.skill, spec.n_in, spec.n_out, tuples["train"], tuples["val"], encoder, cfg, seed=loop.seed)
+    directory = out / FEASIBILITY_DIR / cfg.skill
+    result = fit(task, loop, directory)
+    figures = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
+    figures.update(skill=cfg.skill, train_positives=len(task.train_in), heldout_positives=len(task.val_in),
+                   heldout_hard_negatives=len(task.val_hard[0]))
+    return _finish(directory, "feasibility", result, figures, data, len(train), len(val))
+
+
+def _train_cost(data: Path, out: Path, loop: LoopConfig, cfg: CostTrainConfig) -> dict[str, Any]:
+    encoder = _load_encoder(out, cfg.vae)
+    train, val = _split(data, cfg, loop)
+    pairs = {name: entity_pairs(encode_demos(d, encoder, num_points=cfg.num_points, stride=cfg.stride, seed=loop.seed), cfg,
+                                seed=loop.seed + i) for i, (name, d) in enumerate((("train", train), ("val", val)))}
+    task = CostTask(pairs["train"], pairs["val"], encoder.latent_dim, cfg, seed=loop.seed)
+    directory = out / COST_DIR
+    result = fit(task, loop, directory)
+    figures = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
+    figures.update(train_pairs=len(task.train_a), heldout_pairs=len(task.val_a))
+    return _finish(directory, "cost", result, figures, data, len(train), len(val))
