@@ -1,8 +1,7 @@
 """Behaviour-cloning data for one skill: demonstrations with hindsight goals.
 
-Demonstration format (written by ``pasta demos``): ``DIR/<skill>/demo_00000.npz`` with ``dough``
-``(T+1, P, 3)``, ``tool_points`` ``(T+1, Tp, 3)``, ``tool_pose`` ``(T+1, 7)``, ``action`` ``(T, A)``,
-``skill`` and ``params`` (0-d strings).
+Demonstrations are read with the shared reader :mod:`pasta.train.data` (``DIR/<skill>/demo_00000.npz``
+with ``dough (T+1, P, 3)``, ``tool_points (T+1, Tp, 3)``, ``action (T, A)``, ...).
 
 A training sample is a time step ``t`` of a demo and a goal:
 
@@ -19,15 +18,15 @@ label always belongs to the goal actually fed to the network. Every point gets u
 
 from __future__ import annotations
 
-import json
+from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 
-from pasta.core.errors import InputError, MissingComponentError
+from pasta.core.errors import InputError
+from pasta.train.data import Demo
 
-__all__ = ["Batch", "DemoSet", "load_demos", "split_demos"]
+__all__ = ["Batch", "DemoSet"]
 
 
 @dataclass
@@ -40,52 +39,6 @@ class Batch:
     goal: np.ndarray
     action: np.ndarray
     done: np.ndarray
-
-
-@dataclass
-class Demo:
-    dough: np.ndarray  # (T+1, P, 3)
-    tool_points: np.ndarray  # (T+1, Tp, 3)
-    action: np.ndarray  # (T, A)
-    path: str
-
-
-def demo_files(data: str | Path, skill: str) -> list[Path]:
-    """The sorted demo files of ``skill`` under ``data``."""
-    files = sorted(Path(data, skill).glob("demo_*.npz"))
-    if not files:
-        raise MissingComponentError(f"no demonstrations of '{skill}' in {Path(data, skill)}: run `pasta demos` first")
-    return files
-
-
-def load_demos(files: list[Path], skill: str | None = None) -> list[Demo]:
-    """Read demo files (no pickle); check shapes and that each is a demo of ``skill``."""
-    out = []
-    for f in files:
-        with np.load(f, allow_pickle=False) as z:
-            dough, tool, action = (np.asarray(z[k], np.float32) for k in ("dough", "tool_points", "action"))
-            name = str(z["skill"]) if "skill" in z else None
-        t = action.shape[0]
-        if dough.ndim != 3 or dough.shape[0] != t + 1 or tool.shape[0] != t + 1 or action.ndim != 2 or t < 1:
-            raise InputError(f"{f}: expected dough (T+1, P, 3), tool_points (T+1, Tp, 3), action (T, A) with T >= 1, "
-                             f"got {dough.shape}, {tool.shape}, {action.shape}")
-        if skill is not None and name is not None and name != skill:
-            raise InputError(f"{f} is a demo of '{name}', not '{skill}'")
-        out.append(Demo(dough, tool, action, str(f)))
-    dims = {d.action.shape[1] for d in out}
-    if len(dims) > 1:
-        raise InputError(f"demos of one skill must share one action size, got {sorted(dims)}")
-    return out
-
-
-def split_demos(files: list[Path], val_fraction: float, seed: int) -> tuple[list[Path], list[Path]]:
-    """Split by demonstration (never inside one), seeded. At least one demo stays for training."""
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(len(files))
-    n_val = min(int(round(len(files) * val_fraction)), len(files) - 1)
-    val = sorted(files[i] for i in order[:n_val])
-    train = sorted(files[i] for i in order[n_val:])
-    return train, val
 
 
 def _subsample(cloud: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -103,11 +56,16 @@ class DemoSet:
         noise: half-width of the uniform point noise (0 to disable, e.g. for validation).
     """
 
-    def __init__(self, demos: list[Demo], *, dough_points: int = 512, tool_points: int = 100, goal_points: int = 512,
+    def __init__(self, demos: Sequence[Demo], *, dough_points: int = 512, tool_points: int = 100, goal_points: int = 512,
                  hindsight_ratio: float = 0.5, noise: float = 0.005) -> None:
         if not demos:
             raise InputError("DemoSet needs at least one demonstration")
-        self.demos = demos
+        dims = {d.action.shape[1] for d in demos}
+        if len(dims) > 1:
+            raise InputError(f"demonstrations of one skill must share one action size, got {sorted(dims)}")
+        if any(d.action.shape[0] < 1 or d.dough.shape[0] != d.action.shape[0] + 1 for d in demos):
+            raise InputError("every demonstration needs T >= 1 actions and T + 1 dough clouds")
+        self.demos = list(demos)
         self.sizes = (dough_points, tool_points, goal_points)
         self.hindsight_ratio = hindsight_ratio
         self.noise = noise
@@ -145,8 +103,3 @@ class DemoSet:
                 b[k] = b[k] + rng.uniform(-self.noise, self.noise, b[k].shape).astype(np.float32)
         return Batch(**b)
 
-
-def demo_params(path: str | Path) -> dict:
-    """The expert parameters stored in a demo file (``params`` JSON)."""
-    with np.load(path, allow_pickle=False) as z:
-        return json.loads(str(z["params"])) if "params" in z else {}

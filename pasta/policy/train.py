@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from pasta.core.errors import ConfigError
-from pasta.policy.dataset import Batch, DemoSet, demo_files, load_demos, split_demos
+from pasta.policy.dataset import Batch, DemoSet
 from pasta.policy.learned import MODULE, LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
 
@@ -122,15 +122,17 @@ class PolicyTask:
 
 def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: PolicyConfig | None = None,
               tool: str | None = None, seed: int = 0, batch_size: int = 32) -> PolicyTask:
-    """Load and split the demonstrations of ``skill`` under ``data`` and build the task."""
-    files = demo_files(data, skill)
+    """Load the demonstrations of ``skill`` under ``data`` (shared reader), split them by demonstration, build the task."""
+    from pasta.train.data import load_demos, split_by_demo
+
+    demos = load_demos(data, [skill])
     if cfg.max_demos > 0:
-        files = files[: cfg.max_demos]
-    train_files, val_files = split_demos(files, cfg.val_fraction, seed)
+        demos = demos[: cfg.max_demos]
+    train_demos, val_demos = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=seed)
     kw = dict(dough_points=cfg.dough_points, tool_points=cfg.tool_points, goal_points=cfg.goal_points,
               hindsight_ratio=cfg.hindsight_ratio)
-    train = DemoSet(load_demos(train_files, skill), noise=cfg.noise, **kw)
-    val = DemoSet(load_demos(val_files, skill), noise=0.0, **kw) if val_files else DemoSet(train.demos, noise=0.0, **kw)
+    train = DemoSet(train_demos, noise=cfg.noise, **kw)
+    val = DemoSet(val_demos or train_demos, noise=0.0, **kw)
     if tool is None:
         tool = _skill_tool(skill)
     return PolicyTask(skill, tool, train, val, cfg, network, seed=seed, batch_size=batch_size)

@@ -6,58 +6,8 @@ import numpy as np
 import pytest
 import torch
 
-from pasta.core import Controller, Encoder, Skill, SkillSpec, ToolPose
-from pasta.core.plan import Plan, PlanStep, as_latents
+from pasta.core.plan import PlanStep
 from pasta.execute import ExecuteConfig, attend, execute_plan
-
-
-class BoxEncoder(Encoder):
-    """Decodes u = [z0, z1, tx, ty, tz] to a fixed 0.1 x 0.06 x 0.06 box of points centred at t."""
-
-    z_dim = 2
-
-    def encode(self, points):
-        return torch.cat([torch.zeros(len(points), 2), points.mean(1)], 1)
-
-    def decode(self, latents, num_points):
-        g = torch.Generator().manual_seed(0)
-        box = (torch.rand(num_points, 3, generator=g) - 0.5) * torch.tensor([0.1, 0.06, 0.06])
-        return latents[:, None, 2:5] + box
-
-    def sample_prior(self, n, generator):
-        return torch.rand(n, 5, generator=generator)
-
-
-class PushLeft(Controller):
-    """Pushes -x for ``n`` steps, then reports done."""
-
-    def __init__(self, n):
-        self.n, self.i = n, 0
-
-    def act(self, obs):
-        assert obs.piece.shape[1] == 3 and obs.goal.shape[1] == 3 and obs.tool_points.shape[1] == 3
-        self.i += 1
-        return np.array([-1.0, 0.0, 0.0, 0.0], np.float32), self.i >= self.n
-
-
-class Nudge(Skill):
-    spec = SkillSpec("nudge", 1, 1, "pusher", "test skill: push a piece a little towards -x")
-
-    def approach_pose(self, piece, goal, scene=None):
-        return ToolPose((float(piece[:, 0].max()) + 0.025, 0.06, float(piece[:, 2].mean())))
-
-    def park_pose(self):
-        return ToolPose((0.45, 0.8, 0.12))
-
-    def controller(self):
-        return PushLeft(4)
-
-
-def _plan(center, shift):
-    u0 = [0.0, 0.0, *center]
-    u1 = [0.0, 0.0, center[0] - shift, center[1], center[2]]
-    step = PlanStep("nudge", (0,), as_latents([u1]), 1.0, as_latents([u1]))
-    return Plan((step,), as_latents([u0]), as_latents([u1]), 0.0, 1.0, "hand", 0)
 
 
 def test_attend_first_step_by_index_later_by_nearest_centroid():
@@ -72,7 +22,7 @@ def test_attend_first_step_by_index_later_by_nearest_centroid():
 
 
 @pytest.mark.sim
-def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path):
+def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path, nudge, box_encoder, one_step_plan):
     from pasta.io import RunLogger, RunReader
     from pasta.io import replay
     from pasta.sim import SimConfig, Simulator, crs_dough
@@ -82,10 +32,10 @@ def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path):
     obs = sim.reset(crs_dough(cfg.n_particles, rng=3, floor_y=sim.floor_y, length=0.2))
     center = obs.dough.mean(0).tolist()
     goal = obs.dough - np.array([0.03, 0.0, 0.0], np.float32)
-    skill = Nudge()
+    skill = nudge
     path = tmp_path / "run.mcap"
     with RunLogger(path) as log:
-        res = execute_plan(sim, _plan(center, 0.03), skills={"nudge": skill}, encoder=BoxEncoder(), goal=goal,
+        res = execute_plan(sim, one_step_plan(center, 0.03), skills={"nudge": skill}, encoder=box_encoder, goal=goal,
                            cfg=ExecuteConfig(controller="heuristic", idle_steps=2, decode_points=200), logger=log)
     assert len(res.steps) == 1
     info = res.steps[0]
@@ -104,7 +54,7 @@ def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path):
 
 
 @pytest.mark.sim
-def test_executor_drives_the_learned_policy():
+def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
     from pasta.policy.learned import LearnedPolicy
     from pasta.policy.network import PolicyConfig, PolicyNet
     from pasta.policy.pointnet2 import PointNet2Config, SAConfig
@@ -116,8 +66,8 @@ def test_executor_drives_the_learned_policy():
     torch.manual_seed(0)
     net = PolicyNet(PolicyConfig(action_dim=4, dough_points=64, tool_points=20, goal_points=64, head_widths=(16,),
                                  encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16,))], global_widths=(32,))))
-    skill = Nudge()
+    skill = nudge
     skill.attach_policy(LearnedPolicy(net, "nudge", done_threshold=1.0))  # never done: runs to max_steps
-    res = execute_plan(sim, _plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill}, encoder=BoxEncoder(),
+    res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill}, encoder=box_encoder,
                        goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64))
     assert res.steps[0].env_steps == 3 and not res.steps[0].done and sim.step_count == 4

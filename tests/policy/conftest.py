@@ -28,6 +28,7 @@ def write_demo(path, *, steps=8, points=64, tool_points=20, seed=0, skill="push"
 
 @pytest.fixture
 def demo_dir(tmp_path):
+    (tmp_path / "manifest.json").write_text(json.dumps({"skills": ["push"]}))
     for i in range(3):
         write_demo(tmp_path / "push" / f"demo_{i:05d}.npz", seed=i)
     return tmp_path

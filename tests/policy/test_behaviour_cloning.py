@@ -6,7 +6,8 @@ import torch
 
 from pasta.core.errors import InputError
 from pasta.core.skill import SkillObservation
-from pasta.policy.dataset import Demo, DemoSet
+from pasta.policy.dataset import DemoSet
+from pasta.train.data import Demo
 from pasta.policy.learned import LearnedPolicy
 from pasta.policy.network import PolicyConfig
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
@@ -19,7 +20,8 @@ TINY = PolicyConfig(encoder=PointNet2Config(levels=[SAConfig(32, 0.1, 8, (32, 32
 def _counting_demo(steps=6):
     """dough[t] is filled with the value t, so a goal cloud tells which state it came from."""
     dough = np.repeat(np.arange(steps + 1, dtype=np.float32)[:, None, None], 10, 1).repeat(3, 2)
-    return Demo(dough, np.zeros((steps + 1, 4, 3), np.float32), np.zeros((steps, 2), np.float32), "counting")
+    return Demo("push", 0, dough, np.zeros((steps + 1, 4, 3), np.float32), np.zeros((steps + 1, 7), np.float32),
+                np.zeros((steps, 2), np.float32))
 
 
 @pytest.mark.parametrize("ratio", [0.0, 0.5, 1.0])

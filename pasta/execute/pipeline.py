@@ -1,0 +1,70 @@
+"""One task episode end to end: perception -> plan -> execution -> score (what ``pasta run`` does).
+
+- :func:`perceive`: decompose a dough cloud (DBSCAN, ``min_points`` 50) and encode every entity.
+- :func:`plan_from_clouds`: perceive the observation and the goal, build the planning problem, plan.
+- :func:`run_episode`: plan and execute in a simulator, optionally re-planning after every step.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from pasta.core.decompose import decompose
+from pasta.core.plan import Plan
+from pasta.execute.executor import ExecuteConfig, ExecutionResult, execute_plan
+
+__all__ = ["Episode", "perceive", "plan_from_clouds", "run_episode"]
+
+
+def perceive(points: np.ndarray, encoder: Any, *, min_points: int = 50, num_points: int = 1000,
+             seed: int = 0) -> tuple[list[np.ndarray], Any]:
+    """Entities of ``points (P, 3)`` (each ``(num_points, 3)``) and their latents ``(K, D)`` (torch)."""
+    import torch
+
+    entities = decompose(points, min_points=min_points, num_points=num_points, seed=seed)
+    with torch.no_grad():
+        latents = encoder.encode(torch.as_tensor(np.stack(entities)))
+    return entities, latents.detach().cpu().float()
+
+
+def plan_from_clouds(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills: Sequence[Any], encoder: Any,
+                     cost: Any, horizon: int, seed: int = 0, skeleton: Sequence[str] | None = None,
+                     min_points: int = 50, num_points: int = 1000) -> Plan:
+    """Perceive ``obs (P, 3)`` and ``goal (G, 3)`` and plan ``horizon`` steps with ``planner``."""
+    from pasta.core.planner import PlanningProblem
+
+    _, u_obs = perceive(obs, encoder, min_points=min_points, num_points=num_points, seed=seed)
+    _, u_goal = perceive(goal, encoder, min_points=min_points, num_points=num_points, seed=seed)
+    problem = PlanningProblem(obs=u_obs, goal=u_goal, skills=list(skills), encoder=encoder, cost=cost,
+                              horizon=horizon, seed=seed, skeleton=tuple(skeleton) if skeleton else None)
+    return planner.plan(problem)
+
+
+@dataclass
+class Episode:
+    """A planned and executed episode: the first plan and the execution result."""
+
+    plan: Plan
+    result: ExecutionResult
+
+
+def run_episode(sim: Any, goal: np.ndarray, *, planner: Any, skills: Sequence[Any], encoder: Any, cost: Any,
+                horizon: int, seed: int = 0, skeleton: Sequence[str] | None = None,
+                cfg: ExecuteConfig | None = None, logger: Any = None) -> Episode:
+    """Plan from ``sim``'s current observation to ``goal (G, 3)`` and execute (see :func:`execute_plan`)."""
+    cfg = cfg or ExecuteConfig()
+    kw = dict(planner=planner, skills=skills, encoder=encoder, cost=cost, seed=seed, min_points=cfg.min_points)
+    plan = plan_from_clouds(sim.observe().dough, goal, horizon=horizon, skeleton=skeleton, **kw)
+
+    def replan(dough: np.ndarray, steps_left: int) -> Plan:
+        done = horizon - steps_left
+        rest = tuple(skeleton[done:]) if skeleton else None
+        return plan_from_clouds(dough, goal, horizon=steps_left, skeleton=rest, **kw)
+
+    result = execute_plan(sim, plan, skills={s.name: s for s in skills}, encoder=encoder, goal=goal, cfg=cfg,
+                          replan=replan if cfg.closed_loop else None, logger=logger)
+    return Episode(plan, result)

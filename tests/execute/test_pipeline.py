@@ -1,0 +1,58 @@
+"""`pasta run` plumbing: argument splitting, and perceive -> plan -> execute with a stub planner (closed loop)."""
+
+import numpy as np
+import pytest
+
+from pasta.commands.run import split_overrides
+from pasta.core.errors import ConfigError
+from pasta.core.plan import Plan, PlanStep, as_latents
+
+
+def test_split_overrides():
+    own, exe, rest = split_overrides(["task=crs", "seed=3", "controller=heuristic", "execute.max_steps=20",
+                                      "execute.closed_loop=true", "planner=sampling", "log=r.mcap"])
+    assert own == {"task": "crs", "log": "r.mcap"}
+    assert exe == {"controller": "heuristic", "max_steps": 20, "closed_loop": True}
+    assert rest == ["seed=3", "planner=sampling"]
+    with pytest.raises(ConfigError, match="max_steps"):
+        split_overrides(["execute.max_step=3"])
+    with pytest.raises(ConfigError):
+        split_overrides(["execute.max_steps=abc"])
+
+
+class StubPlanner:
+    """Plans `horizon` nudges of 0.015 towards -x from the first observed entity; records its calls."""
+
+    def __init__(self):
+        self.calls = []
+
+    def plan(self, problem):
+        self.calls.append((len(problem.obs), problem.horizon))
+        u = problem.obs[0].tolist()
+        steps, state = [], [u]
+        for _ in range(problem.horizon):
+            u = [u[0], u[1], u[2] - 0.015, u[3], u[4]]
+            steps.append(PlanStep("nudge", (0,), as_latents([u]), 1.0, as_latents([u] + state[1:])))
+        return Plan(tuple(steps), as_latents(problem.obs), as_latents(problem.goal), 0.0, 1.0, "stub", problem.seed)
+
+
+class ZeroCost:
+    pass
+
+
+@pytest.mark.sim
+def test_run_episode_closed_loop_replans_after_each_step(nudge, box_encoder):
+    from pasta.execute import ExecuteConfig
+    from pasta.execute.pipeline import run_episode
+    from pasta.sim import SimConfig, Simulator, crs_dough
+
+    cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=5)
+    sim = Simulator(cfg)
+    obs = sim.reset(crs_dough(cfg.n_particles, rng=5, floor_y=sim.floor_y, length=0.2))
+    planner = StubPlanner()
+    ep = run_episode(sim, obs.dough - np.array([0.03, 0, 0], np.float32), planner=planner, skills=[nudge],
+                     encoder=box_encoder, cost=ZeroCost(), horizon=2, seed=0,
+                     cfg=ExecuteConfig(controller="heuristic", idle_steps=1, decode_points=100, closed_loop=True))
+    assert planner.calls == [(1, 2), (1, 1)]  # planned once, re-planned once for the last step
+    assert [s.skill for s in ep.result.steps] == ["nudge", "nudge"] and len(ep.result.plans) == 2
+    assert ep.result.normalized_improvement > 0
