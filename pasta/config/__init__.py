@@ -18,7 +18,7 @@ from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBase
 from pasta.core.errors import ConfigError, did_you_mean
 
 #: config key -> plugin registry kind whose names it accepts
-GROUPS: dict[str, str] = {"planner": "planner"}
+GROUPS: dict[str, str] = {"planner": "planner", "encoder": "encoder", "cost_model": "cost_model"}
 
 
 @dataclass
@@ -28,6 +28,8 @@ class RunConfig:
     seed: int = 0
     device: str = "cpu"
     planner: Any = None
+    encoder: Any = None
+    cost_model: Any = None
 
 
 def default_yaml() -> dict[str, Any]:
