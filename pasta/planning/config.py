@@ -28,9 +28,16 @@ class LatentPlannerConfig(PluginConfig):
     # op for <= 4 entities); "frozen" solves it at the first iteration and afterwards evaluates the cost
     # model only on the matched pairs (the paper's choice; 1/G of the cost-model work). "auto": frozen.
     matching: str = "auto"
-    # Successive halving: at these fractions of the iterations keep the better half of the samples
-    # (ranked by objective over all sequences), always keeping each sequence's best `keep_per_sequence`.
+    keep_per_sequence: int = 4  # also: candidates per sequence reported in plan.info (paper top-4)
+
+
+@dataclass
+class HalvingConfig(LatentPlannerConfig):
+    """Adds successive halving (gradient planners only; the sampling planner has no such fields)."""
+
+    # Successive halving: at these fractions of the iterations keep the better half of the samples, ranked
+    # by the log of the unfloored score (sum_h log f_h - lambda * C), within each sequence ("sequence")
+    # or over all sequences ("global"); each sequence always keeps its best `keep_per_sequence`.
     successive_halving: bool = False
     halving_points: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5])
     halving_scope: str = "sequence"  # "sequence": halve every sequence; "global": rank all samples together
-    keep_per_sequence: int = 4  # also: candidates per sequence reported in plan.info (paper top-4)

@@ -130,7 +130,7 @@ class _Optimiser:
         m = [torch.zeros_like(x) for x in lat]
         v = [torch.zeros_like(x) for x in lat]
         milestones = set()
-        if cfg.successive_halving:
+        if getattr(cfg, "successive_halving", False):
             milestones = {round(f * iters) for f in cfg.halving_points if 0 < f < 1} - {0, iters}
         b1, b2 = _ADAM_BETAS
         for it in range(iters + 1):
@@ -164,7 +164,7 @@ class _Optimiser:
         seq = torch.cat([g.seq for g in self.batch.groups])
         n = values.shape[0]
         keep = torch.zeros(n, dtype=torch.bool)
-        if self.cfg.halving_scope == "global":
+        if getattr(self.cfg, "halving_scope", "sequence") == "global":
             order = torch.argsort(-values, stable=True)
             keep[order[: math.ceil(n / 2)]] = True
             keep[_top_per_label(values, seq, self.cfg.keep_per_sequence)] = True

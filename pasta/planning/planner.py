@@ -53,7 +53,7 @@ class LatentPlanner(Planner):
             "samples": sum(r.samples for r in results),
             "evaluations": sum(r.evaluations for r in results),
             "iterations": int(self.cfg.iterations),
-            "successive_halving": bool(self.cfg.successive_halving) and self.method == "adam",
+            "successive_halving": bool(getattr(self.cfg, "successive_halving", False)) and self.method == "adam",
             "per_sequence": results[-1].per_sequence if len(results) == 1 else [r.per_sequence for r in results],
         }
 

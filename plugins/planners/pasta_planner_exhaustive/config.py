@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pasta.planning.config import LatentPlannerConfig
+from pasta.planning.config import HalvingConfig
 
 
 @dataclass
-class ExhaustiveConfig(LatentPlannerConfig):
+class ExhaustiveConfig(HalvingConfig):
     """every skill sequence with the right cardinality, random attention, Adam on sub-goal latents (PASTA)."""
 
     # 0: only sequences of the problem's horizon H; N > 0: every horizon 1..N, optimised in one batch

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pasta.planning.config import LatentPlannerConfig
+from pasta.planning.config import HalvingConfig
 
 
 @dataclass
-class RecedingHorizonConfig(LatentPlannerConfig):
+class RecedingHorizonConfig(HalvingConfig):
     """optimise a window of steps, commit the first, slide (long tasks)."""
 
     window: int = 3  # steps optimised at once (paper: 3)
