@@ -127,18 +127,33 @@ def run(args: argparse.Namespace) -> int:
     own, execute_kw, rest = split_overrides(list(args.overrides))
     if not own.get("task"):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
-    cfg = load_config(rest)
-    exe = ExecuteConfig(**execute_kw)
+    models = Path(own.get("models", "models"))
+    groups = {"encoder": "pc_vae", "cost_model": "set_cost"}  # the same defaults as `pasta plan`
+    keys = {r.partition("=")[0].strip() for r in rest}
+    for group, default in groups.items():
+        if group not in keys:
+            rest.insert(0, f"{group}={default}")
+    if "models" in own:  # trained weights under the given root unless set explicitly
+        for key, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost")):
+            if key not in keys:
+                rest.append(f"{key}={models / sub}")
     plugins = get_plugins()
+    cfg = load_config(rest, plugins=plugins)
+    exe = ExecuteConfig(**execute_kw)
     name, seed = own["task"], int(cfg.seed)
     inst = task_instance(name, seed)
     skill_names = list(inst["skills"] or plugins.skills.names())
     skills = [plugins.skills.create(n) for n in skill_names]
-    models = Path(own.get("models", "models"))
+    choice = {g: v for g, v in (r.partition("=")[::2] for r in rest) if g in groups}
 
-    from pasta.nn.loading import load_models
+    def conf(key: str) -> Any:
+        return section(cfg, key) if cfg[key] is not None else None
 
-    encoder, cost = load_models(models, skills, device=str(cfg.device))
+    encoder = plugins.encoders.create(choice["encoder"], conf("encoder"))
+    cost = plugins.cost_models.create(choice["cost_model"], conf("cost_model"))
+    from pasta.nn.loading import attach_feasibility
+
+    attach_feasibility([s for s in skills if s.feasibility_model is None], models, latent_dim=encoder.latent_dim)
     if exe.controller == "learned":
         from pasta.policy import POLICY_DIR
         from pasta.policy.learned import load_policy

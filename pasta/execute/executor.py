@@ -45,7 +45,7 @@ class ExecuteConfig:
 
     Attributes:
         controller: ``"learned"`` (the skill's attached policy) or ``"heuristic"`` (its controller).
-        max_steps: controller steps per skill at most.
+        max_steps: controller steps per skill at most (0: the skill's own ``max_steps``, else 50).
         idle_steps: zero-action steps after each skill.
         min_points: DBSCAN clusters smaller than this are noise (50 at execution, as in the paper).
         decode_points: points per decoded sub-goal entity.
@@ -70,8 +70,8 @@ class ExecuteConfig:
     def __post_init__(self) -> None:
         if self.controller not in ("learned", "heuristic"):
             raise ConfigError(f"execute.controller must be 'learned' or 'heuristic', got {self.controller!r}")
-        if self.max_steps < 1 or self.idle_steps < 0 or self.min_points < 1 or self.decode_points < 1:
-            raise ConfigError("execute: max_steps, min_points, decode_points must be >= 1 and idle_steps >= 0")
+        if self.max_steps < 0 or self.idle_steps < 0 or self.min_points < 1 or self.decode_points < 1:
+            raise ConfigError("execute: min_points, decode_points must be >= 1, max_steps and idle_steps >= 0")
 
 
 @dataclass
@@ -217,7 +217,7 @@ def execute_plan(
             controller = _controller(skill, cfg.controller)
             start_step = sim.step_count
             try:
-                res = run_skill(sim, skill, controller, idx, goal_points, max_steps=cfg.max_steps,
+                res = run_skill(sim, skill, controller, idx, goal_points, max_steps=cfg.max_steps or None,
                                 idle_steps=cfg.idle_steps, record=log is not None)
                 steps_run, done = res.steps, res.done
                 if log:
