@@ -282,7 +282,8 @@ class _Log:
             s["outputs"] = len(s["subgoal"])
         self.log.plan(self.t(self.sim.step_count), d)
 
-    def tools(self, t: int) -> None:
+    def tools(self, t: int, override: dict[str, np.ndarray] | None = None) -> None:
+        """Log every tool at its current pose (``override``: tool -> (7,) pose to show instead)."""
         from pasta.io import ToolPrimitive
         from pasta.sim.tools import KNIFE_HALF, PUSHER_HALF, ROLLER_HALF_LENGTH, ROLLER_RADIUS, TOOL_NAMES
 
@@ -291,7 +292,8 @@ class _Log:
         prims = []
         for name in TOOL_NAMES:
             if name in shapes:
-                pose = self.sim.tool_pose(name)
+                pose = (override or {}).get(name)
+                pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
                 prims.append(ToolPrimitive(name, shapes[name][0], shapes[name][1], pose[:3], pose[3:]))
         self.log.tools("/tools", t, prims)
 
@@ -312,6 +314,7 @@ class _Log:
             s += 1
             if s % self.every == 0:
                 self.log.point_cloud("/dough", self.t(s), traj.dough[i + 1])
+                self.tools(self.t(s), {tool: traj.tool_pose[i + 1]})
         from pasta.io import ACTIONS
         from pasta.io.schemas import ACTION_SCHEMA
 

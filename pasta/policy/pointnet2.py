@@ -95,7 +95,7 @@ class SAConfig:
 
 
 def _default_levels() -> list[SAConfig]:
-    return [SAConfig(256, 0.05, 32, (32, 32, 64)), SAConfig(64, 0.1, 32, (64, 64, 128))]
+    return [SAConfig(128, 0.05, 16, (32, 32, 64)), SAConfig(32, 0.12, 16, (64, 64, 128))]
 
 
 @dataclass

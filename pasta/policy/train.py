@@ -234,3 +234,20 @@ def _convert(key: str, raw: Any, kind: Any) -> Any:
     except ValueError:
         raise ConfigError(f"{key}={raw!r}: expected a {kind}") from None
     return raw
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m pasta.policy.train skill=NAME data=DIR out=MODELS [key=value ...]`` (until ``pasta train policy`` is wired)."""
+    import json
+    import sys
+
+    pairs = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    data, out = pairs.pop("data", ""), pairs.pop("out", "")
+    if not data or not out:
+        raise ConfigError("needs data=DIR and out=MODELS_DIR")
+    print(json.dumps(train_command(data, out, pairs), indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
