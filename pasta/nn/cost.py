@@ -87,4 +87,4 @@ def load_pair_cost(directory: str, *, device: str = "cpu", latent_dim: int | Non
                            hint="train one with `pasta train cost data=DIR out=models` (writes models/cost)")
     model = PairCost(ckpt.config["latent_dim"], ckpt.config["hidden"])
     model.load_state_dict(ckpt.tensors)
-    return model.to(device)
+    return model.requires_grad_(False).to(device)

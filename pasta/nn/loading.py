@@ -33,7 +33,7 @@ def load_feasibility(
     c = ckpt.config
     model = SetFeasibility(c["n_in"], c["n_out"], c["latent_dim"], c["hidden"])
     model.load_state_dict(ckpt.tensors)
-    return model.to(device).eval()
+    return model.requires_grad_(False).to(device).eval()
 
 
 def attach_feasibility(skills: Iterable[Any], root: str | Path, *, latent_dim: int | None = None, strict: bool = True) -> list[str]:

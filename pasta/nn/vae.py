@@ -89,4 +89,4 @@ def load_vae(directory: str, *, scope: str = "entity", device: str = "cpu") -> P
     cfg = ckpt.config
     model = PointVAE(cfg["z_dim"], cfg["width"], cfg["fold_hidden"])
     model.load_state_dict(ckpt.tensors)
-    return model.to(device).eval()
+    return model.requires_grad_(False).to(device).eval()
