@@ -39,6 +39,8 @@ class PolicyTrainConfig:
         steps_per_epoch: optimiser steps per loop epoch (transitions are sampled with replacement).
         val_batches: fixed validation batches (of the loop's batch size).
         done_weight: weight of the done loss.
+        done_pos_weight: weight of the positive (done = 1) samples in the done loss; done is rare (about
+            one step in twenty with hindsight goals), and without it the done probability stays below 1/2.
         dough_points, tool_points, goal_points: points per source fed to the network.
         max_demos: use at most this many demonstrations (0 = all).
     """
@@ -49,6 +51,7 @@ class PolicyTrainConfig:
     steps_per_epoch: int = 50
     val_batches: int = 4
     done_weight: float = 1.0
+    done_pos_weight: float = 5.0
     dough_points: int = 512
     tool_points: int = 100
     goal_points: int = 512
@@ -104,7 +107,8 @@ class PolicyTask:
     def _losses(self, b: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         action, logit = self.model(b["dough"], b["tool"], b["goal"])
         a_loss = (action - b["action"].clamp(-1, 1)).pow(2).sum(-1).mean()
-        d_loss = torch.nn.functional.binary_cross_entropy_with_logits(logit, b["done"])
+        d_loss = torch.nn.functional.binary_cross_entropy_with_logits(
+            logit, b["done"], pos_weight=logit.new_tensor(self.cfg.done_pos_weight))
         acc = ((logit > 0).float() == b["done"]).float().mean()
         return a_loss, d_loss, acc
 
