@@ -1,11 +1,46 @@
 """Registers the 'cut' skill: cardinality and tool are known here without importing torch or taichi."""
 
+from dataclasses import dataclass
+
 from pasta.core import SkillSpec
 from pasta.plugins import hookimpl
 
 SPEC = SkillSpec(name="cut", n_in=1, n_out=2, tool="knife", description="cut one dough piece in two with the knife")
 
 
+@dataclass
+class CutConfig:
+    """Settings of the cut skill (distances in metres of the unit-cube workspace).
+
+    Attributes:
+        max_steps: env-step limit of one execution.
+        clearance: knife tip height above the piece top at the approach pose.
+        tip_depth: how far below the piece bottom the knife tip aims (the simulator stops it at its lower
+            bound); with the tip that deep only the straight blade, not the wedge, meets the floor band,
+            which is what cuts the bottom layer cleanly.
+        offset_min, offset_max: expert sampling: cut position measured from the piece's left end;
+            the upper bound is also capped at ``length - offset_min`` so both pieces keep >= offset_min.
+        shift_min, shift_max: expert sampling: knife travel that pushes the left piece away after cutting.
+        separate_speed: top separation speed, as a fraction of the full 0.015 per env step.
+        slow_distance: the knife slows down linearly over this last distance of the separation.
+        slide_allowance: the heuristic stops the knife this far before the moved part's centroid target
+            (the part slides on a little).
+        tolerance: position tolerance of the knife and centroid targets.
+    """
+
+    max_steps: int = 90
+    clearance: float = 0.01
+    tip_depth: float = 0.075
+    offset_min: float = 0.10
+    offset_max: float = 0.20
+    shift_min: float = 0.06
+    shift_max: float = 0.08
+    separate_speed: float = 0.3
+    slow_distance: float = 0.02
+    slide_allowance: float = 0.008
+    tolerance: float = 0.002
+
+
 @hookimpl
 def pasta_register_skills(register):
-    register(spec=SPEC, factory="pasta_skill_cut.skill:CutSkill")
+    register(spec=SPEC, factory="pasta_skill_cut.skill:CutSkill", config=CutConfig)

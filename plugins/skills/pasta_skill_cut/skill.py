@@ -1,12 +1,203 @@
-"""The 'cut' skill: cut one dough piece in two with the knife."""
+"""The 'cut' skill: cut one dough piece in two with the knife.
+
+The knife only translates in x and y (action ``(dx, dy)`` in ``[-1, 1]``, times 0.015 per env step), so
+every cut is a plane ``x = const``. One execution has three phases:
+
+1. align: move the knife (approach pose: above the piece centroid) to the cut position ``x``;
+2. descend: lower it until the tip is below the piece bottom (a clean cut), lift it out and lower it
+   into the cut again (the blade is only ~3 grid cells thick: dough pressed into it during the cut
+   would otherwise drag the far piece along);
+3. separate: slide it sideways slowly (fast pushes make the dough slide on for a long time), pushing
+   one part away, then report done.
+
+The scripted expert gets the cut position and the knife travel as explicit parameters; the heuristic
+controller infers them from point clouds alone: the cut position is the quantile of the piece's ``x``
+at the goal's left-piece point fraction (point counts are volumes, whatever the shapes), and it
+separates until the moved part's centroid ``x`` reaches that of its goal piece.
+"""
 
 from __future__ import annotations
 
-from pasta.core import Skill
-from pasta_skill_cut.plugin import SPEC
+from dataclasses import dataclass
+
+import numpy as np
+
+from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.sim.tools import KNIFE_HALF, PARK_POSES, TOOL_ACTION_SCALES
+from pasta_skill_cut.plugin import SPEC, CutConfig
+
+KNIFE_TIP = KNIFE_HALF[1]  # the blade tip is this far below the knife centre
+STEP = TOOL_ACTION_SCALES["knife"][0]  # metres per env step at action 1
+
+
+@dataclass(frozen=True)
+class CutPlan:
+    """What one cut execution does: cut at ``cut_x``, then separate in ``direction`` (-1: left part
+    moves left, +1: right part moves right) until either the knife reaches ``knife_target`` (expert)
+    or the moved part's centroid ``x`` reaches ``centroid_target`` (heuristic)."""
+
+    cut_x: float
+    direction: int
+    knife_target: float | None = None
+    centroid_target: float | None = None
+
+
+def split_by_x_gap(points: np.ndarray, min_fraction: float = 0.05) -> float:
+    """The ``x`` of the widest gap between two parts of ``points (P, 3)``, each keeping at least
+    ``min_fraction`` of the points (a cut is always a plane ``x = const``)."""
+    xs = np.sort(np.asarray(points, np.float64)[:, 0])
+    n = len(xs)
+    lo = max(1, int(np.ceil(min_fraction * n)))
+    hi = min(n - 1, n - lo)
+    if hi <= lo:
+        return float(np.median(xs))
+    gaps = xs[lo:hi + 1] - xs[lo - 1:hi]
+    i = int(np.argmax(gaps)) + lo
+    return float(0.5 * (xs[i - 1] + xs[i]))
+
+
+def plan_from_goal(piece: np.ndarray, goal: np.ndarray) -> CutPlan:
+    """Infer the cut from the observed ``piece (P, 3)`` and the two goal pieces ``goal (G, 3)``."""
+    piece = np.asarray(piece, np.float64)
+    goal = np.asarray(goal, np.float64)
+    split = split_by_x_gap(goal)
+    g_left, g_right = goal[goal[:, 0] < split], goal[goal[:, 0] >= split]
+    frac = len(g_left) / len(goal)
+    cut_x = float(np.quantile(piece[:, 0], frac))
+    p_left, p_right = piece[piece[:, 0] < cut_x], piece[piece[:, 0] >= cut_x]
+    d_left = g_left[:, 0].mean() - p_left[:, 0].mean() if len(p_left) else 0.0
+    d_right = g_right[:, 0].mean() - p_right[:, 0].mean() if len(p_right) else 0.0
+    if -d_left >= d_right:
+        return CutPlan(cut_x, -1, centroid_target=float(g_left[:, 0].mean()))
+    return CutPlan(cut_x, +1, centroid_target=float(g_right[:, 0].mean()))
+
+
+class CutController(Controller):
+    """Align, descend, lift, re-enter, separate. Built from explicit parameters (expert) or from the goal
+    (heuristic)."""
+
+    def __init__(self, config: CutConfig, params: dict[str, float] | None = None) -> None:
+        self.cfg = config
+        self.params = params
+        self.plan: CutPlan | None = None
+        self.phase = "align"
+        self.bottom = self.top = 0.0
+        self.last_y: float | None = None
+
+    def reset(self, obs: SkillObservation) -> None:
+        piece = np.asarray(obs.piece, np.float64)
+        if self.params is not None:
+            cut_x, shift = float(self.params["cut_x"]), float(self.params["shift"])
+            direction = -1 if shift < 0 else 1
+            self.plan = CutPlan(cut_x, direction, knife_target=cut_x + shift)
+        else:
+            if obs.goal is None or len(obs.goal) < 2:
+                raise InputError("cut controller: the goal must hold the two produced pieces")
+            self.plan = plan_from_goal(piece, obs.goal)
+        self.bottom = float(np.percentile(piece[:, 1], 1))
+        self.top = float(np.percentile(piece[:, 1], 99))
+        self.phase = "align"
+        self.last_y = None
+
+    def _vertical(self, y: float, target: float, next_phase: str) -> np.ndarray | None:
+        """Move towards ``target`` height; None (and switch phase) when there or blocked by the bound."""
+        err = target - y
+        stalled = self.last_y is not None and abs(self.last_y - y) < 1e-5
+        self.last_y = y
+        if abs(err) > 1e-4 and not stalled:
+            return np.array([0.0, np.clip(err / STEP, -1, 1)], np.float32)
+        self.phase, self.last_y = next_phase, None
+        return None
+
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+        if self.plan is None:
+            self.reset(obs)
+        plan, cfg = self.plan, self.cfg
+        x, y = float(obs.tool_pose[0]), float(obs.tool_pose[1])
+        low = self.bottom - cfg.tip_depth + KNIFE_TIP
+        high = self.top + cfg.clearance + KNIFE_TIP
+        if self.phase == "align":
+            err = plan.cut_x - x
+            if abs(err) > 1e-4:
+                return np.array([np.clip(err / STEP, -1, 1), 0.0], np.float32), False
+            self.phase = "descend"
+        # cut down, pull the blade out (it releases dough pressed into it) and re-enter the cut: a blade
+        # only three grid cells thick otherwise drags the far piece along while separating
+        for phase, target, nxt in (("descend", low, "lift"), ("lift", high, "reenter"), ("reenter", low, "separate")):
+            if self.phase == phase:
+                action = self._vertical(y, target, nxt)
+                if action is not None:
+                    return action, False
+        if self.phase == "done":
+            return np.zeros(2, np.float32), True
+        # separate
+        if plan.knife_target is not None:
+            remaining = (plan.knife_target - x) * plan.direction
+            allowance = 0.0
+        else:
+            piece = np.asarray(obs.piece, np.float64)
+            moved = piece[(piece[:, 0] - x) * plan.direction > 0]
+            if len(moved) == 0:
+                return np.zeros(2, np.float32), True
+            remaining = (plan.centroid_target - moved[:, 0].mean()) * plan.direction
+            allowance = cfg.slide_allowance
+        if remaining <= cfg.tolerance + allowance:
+            self.phase = "done"
+            return np.zeros(2, np.float32), True
+        speed = float(np.clip(remaining / max(cfg.slow_distance, 1e-6), 0.3, 1.0)) * cfg.separate_speed
+        if plan.knife_target is not None:
+            speed = min(speed, remaining / STEP)  # land exactly on the knife target
+        return np.array([plan.direction * speed, 0.0], np.float32), False
 
 
 class CutSkill(Skill):
     """cut one dough piece in two with the knife (1 -> 2 entities, tool: knife)."""
 
     spec = SPEC
+
+    def __init__(self, config: CutConfig | None = None) -> None:
+        super().__init__(config if config is not None else CutConfig())
+
+    @property
+    def max_steps(self) -> int:
+        return int(self.config.max_steps)
+
+    def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None = None, scene: np.ndarray | None = None) -> ToolPose:
+        """Knife above the piece centroid, its tip ``clearance`` above the piece top."""
+        piece = _points(piece, "piece")
+        c = piece.mean(0)
+        top = float(np.percentile(piece[:, 1], 99))
+        return ToolPose((float(c[0]), top + KNIFE_TIP + self.config.clearance, float(c[2])), 0.0)
+
+    def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
+        """The expert starts where every cut starts: above the piece centroid."""
+        return self.approach_pose(piece)
+
+    def park_pose(self) -> ToolPose:
+        return ToolPose(tuple(float(v) for v in PARK_POSES["knife"]), 0.0)
+
+    def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
+        """``cut_x``: the piece's left end + U(offset_min, offset_max) (both parts keep >= offset_min);
+        ``shift``: -U(shift_min, shift_max), the knife travel pushing the left part away."""
+        piece = _points(piece, "piece")
+        cfg = self.config
+        left, right = np.percentile(piece[:, 0], [0.5, 99.5])
+        hi = min(cfg.offset_max, (right - left) - cfg.offset_min)
+        offset = rng.uniform(cfg.offset_min, max(hi, cfg.offset_min))
+        return {"cut_x": float(left + offset), "shift": float(-rng.uniform(cfg.shift_min, cfg.shift_max))}
+
+    def expert(self, params: dict[str, float]) -> Controller:
+        missing = {"cut_x", "shift"} - set(params)
+        if missing:
+            raise InputError(f"cut expert needs parameters cut_x and shift; missing {sorted(missing)}")
+        return CutController(self.config, dict(params))
+
+    def controller(self) -> Controller:
+        return CutController(self.config)
+
+
+def _points(points: np.ndarray, name: str) -> np.ndarray:
+    arr = np.asarray(points, np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise InputError(f"{name} must be a non-empty (P, 3) point cloud, got shape {arr.shape}")
+    return arr

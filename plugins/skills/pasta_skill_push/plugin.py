@@ -1,11 +1,43 @@
 """Registers the 'push' skill: cardinality and tool are known here without importing torch or taichi."""
 
+from dataclasses import dataclass
+
 from pasta.core import SkillSpec
 from pasta.plugins import hookimpl
 
 SPEC = SkillSpec(name="push", n_in=1, n_out=1, tool="pusher", description="push one dough piece to a new place with the pusher")
 
 
+@dataclass
+class PushConfig:
+    """Settings of the push skill (distances in metres of the unit-cube workspace).
+
+    Attributes:
+        max_steps: env-step limit of one execution.
+        gap: distance between the pusher face and the piece's trailing side at the approach pose.
+        sink: how far the pusher bottom goes below the piece bottom (it must not slide over the floor band).
+        clearance: the pusher footprint at the approach pose keeps this distance from other dough.
+        slow_distance: the push slows down linearly over this last distance (the dough slides on).
+        min_speed: slowest push, as a fraction of the full 0.01 per env step.
+        tolerance: done when the centroid is this close to the target along the push line.
+        target_x_min, target_x_max, target_z_min, target_z_max: expert sampling box of target centroids.
+        min_distance: expert sampling: targets at least this far from the piece centroid.
+    """
+
+    max_steps: int = 80
+    gap: float = 0.008
+    sink: float = 0.005
+    clearance: float = 0.006
+    slow_distance: float = 0.1
+    min_speed: float = 0.1
+    tolerance: float = 0.003
+    target_x_min: float = 0.22
+    target_x_max: float = 0.32
+    target_z_min: float = 0.3
+    target_z_max: float = 0.7
+    min_distance: float = 0.08
+
+
 @hookimpl
 def pasta_register_skills(register):
-    register(spec=SPEC, factory="pasta_skill_push.skill:PushSkill")
+    register(spec=SPEC, factory="pasta_skill_push.skill:PushSkill", config=PushConfig)

@@ -1,12 +1,169 @@
-"""The 'push' skill: push one dough piece to a new place with the pusher."""
+"""The 'push' skill: push one dough piece to a new place with the pusher.
+
+The pusher is a paddle (0.03 thick along its local x, 0.2 long along its local z) moved by the action
+``(dx, dy, dz, dyaw)`` in ``[-1, 1]`` (0.01 per env step, 0.025 rad). The approach pose puts it low, behind
+the piece on the side away from the push direction, its face perpendicular to the line from the piece
+centroid to the target centroid; where that footprint would touch other dough (a neighbouring piece a
+few centimetres away after a cut) it tries faces turned up to 60 degrees from the ideal one (the pusher's
+friction drags the piece along a slanted face).
+
+The controller pushes along the line towards the target centroid (correcting sideways drift), slows
+down over the last ``slow_distance`` because the dough slides on after the pusher stops, and is done
+when the centroid has reached the target along the original push line. The expert gets the target
+centroid ``(target_x, target_z)`` as a parameter; the heuristic controller takes the goal piece's
+centroid.
+"""
 
 from __future__ import annotations
 
-from pasta.core import Skill
-from pasta_skill_push.plugin import SPEC
+import math
+
+import numpy as np
+
+from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.sim.tools import PARK_POSES, PUSHER_HALF, tool_bounds
+from pasta_skill_push.plugin import SPEC, PushConfig
+
+#: face normals tried at the approach, as rotations (degrees) of the ideal push direction
+ANGLES = (0, 10, -10, 20, -20, 30, -30, 45, -45, 60, -60)
+
+
+def _unit(v: np.ndarray, fallback: tuple[float, float] = (-1.0, 0.0)) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return np.asarray(v, np.float64) / n if n > 1e-9 else np.asarray(fallback, np.float64)
+
+
+def _rotate(v: np.ndarray, degrees: float) -> np.ndarray:
+    a = math.radians(degrees)
+    c, s = math.cos(a), math.sin(a)
+    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def other_dough(piece: np.ndarray, scene: np.ndarray | None, radius: float = 0.006) -> np.ndarray:
+    """Points of ``scene (S, 3)`` farther than ``radius`` from every point of ``piece (P, 3)`` -> ``(O, 3)``."""
+    if scene is None or len(scene) == 0:
+        return np.zeros((0, 3))
+    from scipy.spatial import cKDTree
+
+    d, _ = cKDTree(piece).query(np.asarray(scene, np.float64), k=1)
+    return np.asarray(scene, np.float64)[d > radius]
+
+
+def placement(piece: np.ndarray, target_xz: np.ndarray, scene: np.ndarray | None, cfg: PushConfig) -> ToolPose:
+    """Approach pose of the pusher for pushing ``piece (P, 3)`` towards centroid ``target_xz (2,)``."""
+    piece = np.asarray(piece, np.float64)
+    c = piece[:, [0, 2]].mean(0)
+    u = _unit(np.asarray(target_xz, np.float64) - c)
+    others = other_dough(piece, scene)[:, [0, 2]]
+    y = float(np.percentile(piece[:, 1], 1)) - cfg.sink + PUSHER_HALF[1]
+    lo, hi = tool_bounds("pusher", 1.0 / 64)
+    best, best_clear = None, -np.inf
+    for angle in ANGLES:
+        n = _rotate(u, angle)
+        back = -float(np.percentile((piece[:, [0, 2]] - c) @ n, 0.5))
+        centre = c - n * (back + PUSHER_HALF[0] + cfg.gap)
+        yaw = math.atan2(-n[1], n[0])
+        if not (lo[0] <= centre[0] <= hi[0] and lo[2] <= centre[1] <= hi[2]):
+            continue
+        if len(others):
+            rel = others - centre
+            t = np.array([-n[1], n[0]])  # along the paddle
+            a_n, a_t = np.abs(rel @ n) - PUSHER_HALF[0], np.abs(rel @ t) - PUSHER_HALF[2]
+            clear = float(np.min(np.maximum(a_n, a_t)))  # box distance lower bound (max of the axis gaps)
+        else:
+            clear = np.inf
+        pose = ToolPose((float(centre[0]), y, float(centre[1])), float(yaw))
+        if clear >= cfg.clearance:
+            return pose
+        if clear > best_clear:
+            best, best_clear = pose, clear
+    if best is None:  # every candidate left the workspace: push from the ideal side, clamped by the simulator
+        centre = c - u * (PUSHER_HALF[0] + cfg.gap)
+        best = ToolPose((float(centre[0]), y, float(centre[1])), float(math.atan2(-u[1], u[0])))
+    return best
+
+
+class PushController(Controller):
+    """Push the piece centroid to ``target`` (expert) or to the goal's centroid (heuristic)."""
+
+    def __init__(self, config: PushConfig, target: tuple[float, float] | None = None) -> None:
+        self.cfg = config
+        self.fixed_target = None if target is None else np.asarray(target, np.float64)
+        self.target: np.ndarray | None = None
+        self.direction = np.array([-1.0, 0.0])
+
+    def reset(self, obs: SkillObservation) -> None:
+        if self.fixed_target is not None:
+            self.target = self.fixed_target
+        else:
+            if obs.goal is None or len(obs.goal) == 0:
+                raise InputError("push controller: the goal piece is empty")
+            self.target = np.asarray(obs.goal, np.float64)[:, [0, 2]].mean(0)
+        c = np.asarray(obs.piece, np.float64)[:, [0, 2]].mean(0)
+        self.direction = _unit(self.target - c)
+
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+        if self.target is None:
+            self.reset(obs)
+        cfg = self.cfg
+        c = np.asarray(obs.piece, np.float64)[:, [0, 2]].mean(0)
+        rem = self.target - c
+        along = float(rem @ self.direction)
+        if along <= cfg.tolerance:
+            return np.zeros(4, np.float32), True
+        speed = float(np.clip(along / max(cfg.slow_distance, 1e-6), cfg.min_speed, 1.0))
+        lateral = rem - along * self.direction
+        # steer back onto the line, never sideways faster than forwards
+        steer = lateral / max(float(np.linalg.norm(lateral)), 1e-9) * min(float(np.linalg.norm(lateral)) / 0.02, 1.0)
+        move = _unit(self.direction + 0.5 * steer) * speed
+        return np.array([move[0], 0.0, move[1], 0.0], np.float32), False
 
 
 class PushSkill(Skill):
     """push one dough piece to a new place with the pusher (1 -> 1 entities, tool: pusher)."""
 
     spec = SPEC
+
+    def __init__(self, config: PushConfig | None = None) -> None:
+        super().__init__(config if config is not None else PushConfig())
+
+    @property
+    def max_steps(self) -> int:
+        return int(self.config.max_steps)
+
+    def approach_pose(self, piece: np.ndarray, goal: np.ndarray, scene: np.ndarray | None = None) -> ToolPose:
+        """Pusher behind ``piece (P, 3)``, facing the goal centroid (``goal (G, 3)``), avoiding other dough in ``scene``."""
+        piece, goal = _points(piece, "piece"), _points(goal, "goal")
+        return placement(piece, goal[:, [0, 2]].mean(0), scene, self.config)
+
+    def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
+        return placement(_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)
+
+    def park_pose(self) -> ToolPose:
+        return ToolPose(tuple(float(v) for v in PARK_POSES["pusher"]), 0.0)
+
+    def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
+        """A target centroid uniform in the config's box, at least ``min_distance`` from the piece."""
+        c = _points(piece, "piece")[:, [0, 2]].mean(0)
+        cfg = self.config
+        for _ in range(1000):
+            t = np.array([rng.uniform(cfg.target_x_min, cfg.target_x_max), rng.uniform(cfg.target_z_min, cfg.target_z_max)])
+            if np.linalg.norm(t - c) >= cfg.min_distance:
+                break
+        return {"target_x": float(t[0]), "target_z": float(t[1])}
+
+    def expert(self, params: dict[str, float]) -> Controller:
+        missing = {"target_x", "target_z"} - set(params)
+        if missing:
+            raise InputError(f"push expert needs parameters target_x and target_z; missing {sorted(missing)}")
+        return PushController(self.config, (float(params["target_x"]), float(params["target_z"])))
+
+    def controller(self) -> Controller:
+        return PushController(self.config)
+
+
+def _points(points: np.ndarray, name: str) -> np.ndarray:
+    arr = np.asarray(points, np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise InputError(f"{name} must be a non-empty (P, 3) point cloud, got shape {arr.shape}")
+    return arr

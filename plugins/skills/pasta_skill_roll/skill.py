@@ -1,12 +1,177 @@
-"""The 'roll' skill: roll one dough piece flat with the roller."""
+"""The 'roll' skill: roll one dough piece flat with the roller.
+
+The roller is a capsule (radius 0.03, axis along its local z) driven by ``(roll, dyaw, dy, slide)`` in
+``[-1, 1]``; rolling by angle ``a`` moves it ``a * 0.03`` across its axis (rolling without slipping).
+The approach pose puts it just above the piece centroid. The controller lowers it towards
+``floor + height + radius`` while rolling back and forth over the piece; the turning points follow the
+piece's current ends (inset by half a radius), so the whole piece gets flattened and it grows along
+the rolling direction. It is done when the roller is at its height, the piece is at least the target
+length long and has seen ``min_passes`` passes at that height; or after ``max_passes`` such passes.
+
+The expert gets ``height`` (gap under the roller), ``length`` (target extent along the rolling direction)
+and ``yaw`` (rolling direction, 0 = along x) as parameters; the heuristic controller measures them on
+the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``), extent along its main
+horizontal axis, and that axis.
+"""
 
 from __future__ import annotations
 
-from pasta.core import Skill
-from pasta_skill_roll.plugin import SPEC
+import math
+
+import numpy as np
+
+from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.sim.tools import PARK_POSES, ROLLER_RADIUS, TOOL_ACTION_SCALES
+from pasta_skill_roll.plugin import SPEC, RollConfig
+
+ROLL_STEP = TOOL_ACTION_SCALES["roller"][0] * ROLLER_RADIUS  # metres per env step at roll = 1
+LIFT_STEP = TOOL_ACTION_SCALES["roller"][2]  # metres per env step at dy = 1
+
+
+def axis(yaw: float) -> np.ndarray:
+    """Rolling direction in the xz plane for a roller with ``yaw`` (its local +x)."""
+    return np.array([math.cos(yaw), -math.sin(yaw)])
+
+
+def extent(points: np.ndarray, u: np.ndarray) -> tuple[float, float]:
+    """Robust ends (1st and 99th percentiles) of ``points (P, 3)`` along ``u (2,)`` in the xz plane."""
+    proj = np.asarray(points, np.float64)[:, [0, 2]] @ u
+    lo, hi = np.percentile(proj, [1, 99])
+    return float(lo), float(hi)
+
+
+def thickness(points: np.ndarray) -> float:
+    """Dough thickness of ``points (P, 3)``: 95th minus 1st percentile of y."""
+    lo, hi = np.percentile(np.asarray(points, np.float64)[:, 1], [1, 95])
+    return float(hi - lo)
+
+
+def main_yaw(points: np.ndarray, min_elongation: float) -> float:
+    """Yaw whose rolling direction is the main horizontal axis of ``points``, in (-pi/2, pi/2]; 0 unless
+    the cloud is ``min_elongation`` times longer than wide."""
+    xz = np.asarray(points, np.float64)[:, [0, 2]]
+    xz = xz - xz.mean(0)
+    w, v = np.linalg.eigh(np.cov(xz.T))
+    if w[0] <= 0 or math.sqrt(w[1] / w[0]) < min_elongation:
+        return 0.0
+    d = v[:, 1]
+    yaw = math.atan2(-d[1], d[0])
+    if yaw > math.pi / 2:
+        yaw -= math.pi
+    elif yaw <= -math.pi / 2:
+        yaw += math.pi
+    return yaw
+
+
+class RollController(Controller):
+    """Press and roll back and forth until the target thickness and length are reached."""
+
+    def __init__(self, config: RollConfig, params: dict[str, float] | None = None) -> None:
+        self.cfg = config
+        self.params = params
+        self.ready = False
+
+    def reset(self, obs: SkillObservation) -> None:
+        cfg = self.cfg
+        piece = np.asarray(obs.piece, np.float64)
+        if self.params is not None:
+            self.height, self.length, self.yaw = (float(self.params[k]) for k in ("height", "length", "yaw"))
+        else:
+            if obs.goal is None or len(obs.goal) == 0:
+                raise InputError("roll controller: the goal piece is empty")
+            goal = np.asarray(obs.goal, np.float64)
+            self.yaw = main_yaw(goal, cfg.min_elongation)
+            self.height = max(thickness(goal) + cfg.springback, 0.005)
+            lo, hi = extent(goal, axis(self.yaw))
+            self.length = hi - lo
+        self.u = axis(self.yaw)
+        self.floor = float(np.percentile(piece[:, 1], 1))
+        lo, hi = extent(piece, self.u)
+        self.centre = 0.5 * (lo + hi)
+        self.direction = 1.0
+        self.passes = 0
+        self.ready = True
+
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+        if not self.ready:
+            self.reset(obs)
+        cfg = self.cfg
+        pos = np.asarray(obs.tool_pose[:3], np.float64)
+        s = float(pos[[0, 2]] @ self.u)
+        lo, hi = extent(obs.piece, self.u)
+        y_target = self.floor + self.height + ROLLER_RADIUS
+        at_height = abs(pos[1] - y_target) < 1e-3
+        long_enough = (hi - lo) >= self.length - cfg.length_tolerance
+        if at_height and (long_enough and self.passes >= cfg.min_passes or self.passes >= cfg.max_passes):
+            return np.zeros(4, np.float32), True
+        inset = cfg.turn_inset * ROLLER_RADIUS
+        end_lo, end_hi = lo + inset, hi - inset
+        if end_hi < end_lo:
+            end_lo = end_hi = 0.5 * (end_lo + end_hi)
+        if self.direction > 0 and s >= end_hi - 1e-6 or self.direction < 0 and s <= end_lo + 1e-6:
+            self.direction = -self.direction
+            if at_height:
+                self.passes += 1
+        end = end_hi if self.direction > 0 else end_lo
+        roll = self.direction * float(np.clip(abs(end - s) / ROLL_STEP, 0.2, 1.0))
+        dy = float(np.clip((y_target - pos[1]) / LIFT_STEP, -1.0, 1.0))
+        return np.array([roll, 0.0, dy, 0.0], np.float32), False
 
 
 class RollSkill(Skill):
     """roll one dough piece flat with the roller (1 -> 1 entities, tool: roller)."""
 
     spec = SPEC
+
+    def __init__(self, config: RollConfig | None = None) -> None:
+        super().__init__(config if config is not None else RollConfig())
+
+    @property
+    def max_steps(self) -> int:
+        return int(self.config.max_steps)
+
+    def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None = None, scene: np.ndarray | None = None) -> ToolPose:
+        """Roller above the piece centroid, its bottom ``clearance`` above the piece top, turned to the
+        goal's main axis (along x when the goal is not elongated or not given)."""
+        piece = _points(piece, "piece")
+        yaw = 0.0 if goal is None else main_yaw(_points(goal, "goal"), self.config.min_elongation)
+        return self._pose(piece, yaw)
+
+    def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
+        return self._pose(_points(piece, "piece"), float(params.get("yaw", 0.0)))
+
+    def _pose(self, piece: np.ndarray, yaw: float) -> ToolPose:
+        c = piece.mean(0)
+        top = float(np.percentile(piece[:, 1], 99))
+        return ToolPose((float(c[0]), top + ROLLER_RADIUS + self.config.clearance, float(c[2])), yaw)
+
+    def park_pose(self) -> ToolPose:
+        return ToolPose(tuple(float(v) for v in PARK_POSES["roller"]), 0.0)
+
+    def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
+        """``height`` U(height_min, height_max); ``length`` the length the piece's volume (bounding box)
+        fills at that height and ``width``, times U(length_min_factor, length_max_factor) (rolling along x
+        spreads the dough more along x than across, hence factors above 1); ``yaw`` 0."""
+        piece = _points(piece, "piece")
+        cfg = self.config
+        height = rng.uniform(cfg.height_min, cfg.height_max)
+        size = np.percentile(piece, 99, axis=0) - np.percentile(piece, 1, axis=0)
+        natural = float(np.prod(size)) / (height * cfg.width)
+        length = max(natural * rng.uniform(cfg.length_min_factor, cfg.length_max_factor), float(size[0]))
+        return {"height": float(height), "length": float(length), "yaw": 0.0}
+
+    def expert(self, params: dict[str, float]) -> Controller:
+        missing = {"height", "length"} - set(params)
+        if missing:
+            raise InputError(f"roll expert needs parameters height and length (and optionally yaw); missing {sorted(missing)}")
+        return RollController(self.config, {"yaw": 0.0, **{k: float(v) for k, v in params.items()}})
+
+    def controller(self) -> Controller:
+        return RollController(self.config)
+
+
+def _points(points: np.ndarray, name: str) -> np.ndarray:
+    arr = np.asarray(points, np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
+        raise InputError(f"{name} must be a non-empty (P, 3) point cloud, got shape {arr.shape}")
+    return arr

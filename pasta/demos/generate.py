@@ -1,0 +1,277 @@
+"""Demonstration generation: scripted experts with random parameters on random single-piece scenes.
+
+Layout of a dataset directory (fixed; the trainers read it)::
+
+    DIR/manifest.json                 config, versions, per-skill counts
+    DIR/<skill>/demo_00000.npz        one demonstration (np.load(..., allow_pickle=False))
+        dough        (T+1, P, 3) float32  observed dough before every step and after the last
+                                          (the same P particles every step)
+        tool_points  (T+1, Tp, 3) float32 the skill's tool surface points
+        tool_pose    (T+1, 7) float32     tool position + quaternion (w, x, y, z)
+        action       (T, A) float32       actions in [-1, 1]
+        skill        0-d str
+        params       0-d str, JSON of the expert parameters
+        final_dough  (P, 3) float32       the dough after the idle steps that follow the skill
+        dough_index  (P,) int64           simulator particle indices of the observed points
+
+Demo ``i`` of a skill depends only on (seed, skill, i), so runs are reproducible and resumable: files
+that exist are skipped, and each file is written under a temporary name and renamed when complete.
+Workers are separate processes (``spawn``), each with its own Taichi runtime.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import time
+import traceback
+import zlib
+from dataclasses import asdict, dataclass
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pasta.core.errors import ConfigError, InputError
+
+FORMAT = "pasta-demos/1"
+
+
+@dataclass
+class DemoConfig:
+    """Arguments of ``pasta demos`` (``key=value``).
+
+    Attributes:
+        skill: registered skill with a demonstration scene (cut, push, roll).
+        num: demonstrations to have in ``out/<skill>`` (existing ones are kept).
+        out: dataset directory.
+        workers: worker processes (0: generate in this process).
+        seed: base seed; demo ``i`` of ``skill`` uses the stream (seed, skill, i).
+        settle_steps: zero-action steps before the demonstration starts.
+        idle_steps: zero-action steps after it (the final dough is taken after them).
+        n_particles: simulated particles.
+        obs_points: observed points ``P``.
+    """
+
+    skill: str = "cut"
+    num: int = 200
+    out: str = "data/demos"
+    workers: int = 2
+    seed: int = 0
+    settle_steps: int = 10
+    idle_steps: int = 10
+    n_particles: int = 5000
+    obs_points: int = 1000
+
+
+def demo_scene(skill: str, rng: np.random.Generator, floor: float) -> list[tuple]:
+    """Boxes ``[(centre, size)]`` of the single-piece scene a demonstration of ``skill`` starts from."""
+    from pasta.tasks.library import SPREAD_X, crs_box, small_box
+
+    if skill == "cut":
+        return [crs_box(rng, floor)]
+    if skill == "push":
+        return [small_box(rng, floor, (0.45, 0.7), (0.3, 0.7))]
+    if skill == "roll":
+        return [small_box(rng, floor, SPREAD_X, (0.3, 0.7))]
+    raise InputError(f"no demonstration scene for skill '{skill}'")
+
+
+DEMO_SKILLS = ("cut", "push", "roll")
+
+
+def demo_path(out: str | Path, skill: str, index: int) -> Path:
+    return Path(out) / skill / f"demo_{index:05d}.npz"
+
+
+def validate(cfg: DemoConfig) -> Path:
+    """Check every argument before any work starts; returns the (created, writable) skill folder."""
+    from pasta.plugins import get_plugins
+
+    skills = get_plugins().skills
+    known = [s for s in DEMO_SKILLS if s in skills]
+    if cfg.skill not in known:
+        raise ConfigError(f"unknown skill '{cfg.skill}' for demonstrations; known skills: {', '.join(known)}")
+    if cfg.num <= 0:
+        raise ConfigError(f"num must be >= 1, got {cfg.num}")
+    if cfg.workers < 0:
+        raise ConfigError(f"workers must be >= 0, got {cfg.workers}")
+    for name in ("settle_steps", "idle_steps"):
+        if getattr(cfg, name) < 0:
+            raise ConfigError(f"{name} must be >= 0, got {getattr(cfg, name)}")
+    if cfg.n_particles < 1 or cfg.obs_points < 1:
+        raise ConfigError("n_particles and obs_points must be >= 1")
+    folder = Path(cfg.out) / cfg.skill
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        probe = folder / f".write-test-{os.getpid()}"
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise ConfigError(f"out={cfg.out}: cannot write demonstrations there ({exc.strerror or exc})") from None
+    return folder
+
+
+def versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for dist in ("pasta-dough", "numpy", "taichi", "scikit-learn"):
+        try:
+            out[dist] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            out[dist] = "not installed"
+    return out
+
+
+def write_manifest(cfg: DemoConfig) -> Path:
+    """Create or update ``out/manifest.json``: this skill's config, counts and versions."""
+    from pasta.plugins import get_plugins
+
+    root = Path(cfg.out)
+    path = root / "manifest.json"
+    manifest: dict[str, Any] = {}
+    if path.exists():
+        try:
+            manifest = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError):
+            manifest = {}
+    manifest["format"] = FORMAT
+    manifest["versions"] = versions()
+    skills = manifest.setdefault("skills", {})
+    info = get_plugins().skills.info(cfg.skill)
+    files = sorted((root / cfg.skill).glob("demo_*.npz"))
+    skills[cfg.skill] = {
+        "count": len(files),
+        "tool": info.spec.tool,
+        "config": asdict(cfg),
+        "skill_config": _as_dict(get_plugins().skills.default_config(cfg.skill)),
+        "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }
+    manifest["counts"] = {k: v["count"] for k, v in skills.items()}
+    tmp = path.with_name(f".manifest.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
+    os.replace(tmp, path)
+    return path
+
+
+def _as_dict(obj: Any) -> dict:
+    return asdict(obj) if obj is not None else {}
+
+
+class DemoWriter:
+    """Generates demonstrations of one skill in one process (one simulator, reused)."""
+
+    def __init__(self, cfg: DemoConfig) -> None:
+        from pasta.plugins import get_plugins
+        from pasta.sim import SimConfig, Simulator
+
+        self.cfg = cfg
+        self.skill = get_plugins().skills.create(cfg.skill)
+        self.sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
+                                       max_particles=max(10000, cfg.n_particles)))
+
+    def generate(self, index: int) -> dict[str, np.ndarray]:
+        """The arrays of demonstration ``index`` (see the module docstring)."""
+        from pasta.sim import box_particles
+        from pasta.tasks.executor import run_skill
+
+        cfg, sim, skill = self.cfg, self.sim, self.skill
+        rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])
+        (centre, size), = demo_scene(cfg.skill, rng, sim.floor_y)
+        sim.reset(box_particles(centre, size, cfg.n_particles, rng), seed=int(rng.integers(2**31)))
+        for _ in range(cfg.settle_steps):
+            sim.step()
+        obs = sim.observe()
+        params = {k: float(v) for k, v in skill.sample_expert_params(obs.dough, rng).items()}
+        approach = skill.expert_approach_pose(obs.dough, params, scene=obs.dough)
+        run = run_skill(sim, skill, skill.expert(params), np.arange(len(obs.dough)), None, approach=approach,
+                        idle_steps=cfg.idle_steps, park=False, record=True)
+        arrays = run.trajectory.arrays(action_dim=len(run.trajectory.action[0]) if run.trajectory.action else 1)
+        arrays["skill"] = np.array(cfg.skill)
+        arrays["params"] = np.array(json.dumps({**params, "done": run.done, "scene": {"centre": list(map(float, centre)),
+                                                                                     "size": list(map(float, size))}}, sort_keys=True))
+        arrays["final_dough"] = sim.observe().dough.astype(np.float32)
+        arrays["dough_index"] = obs.dough_index.astype(np.int64)
+        return arrays
+
+    def write(self, index: int) -> tuple[int, float]:
+        from pasta.tasks.npz import write_npz
+
+        t0 = time.perf_counter()
+        arrays = self.generate(index)
+        write_npz(demo_path(self.cfg.out, self.cfg.skill, index), arrays)
+        return int(arrays["action"].shape[0]), time.perf_counter() - t0
+
+
+def pending(cfg: DemoConfig) -> list[int]:
+    """Indices in ``[0, num)`` whose file does not exist yet."""
+    return [i for i in range(cfg.num) if not demo_path(cfg.out, cfg.skill, i).exists()]
+
+
+def _worker(cfg_dict: dict, indices: list[int], queue: Any) -> None:
+    try:
+        writer = DemoWriter(DemoConfig(**cfg_dict))
+        for i in indices:
+            steps, secs = writer.write(i)
+            queue.put(("done", i, steps, secs))
+    except BaseException:  # noqa: BLE001 - report anything to the parent
+        queue.put(("error", -1, 0, traceback.format_exc()))
+    queue.put(("exit", -1, 0, 0.0))
+
+
+def generate_demos(cfg: DemoConfig, *, progress: bool = True) -> dict[str, Any]:
+    """Generate the missing demonstrations of ``cfg.skill`` and update the manifest.
+
+    Returns a summary: ``generated``, ``skipped``, ``wall_s``, ``mean_steps``.
+    Raises :class:`ConfigError` on bad arguments before any work, :class:`RuntimeError` when a worker fails.
+    """
+    validate(cfg)
+    todo = pending(cfg)
+    skipped = cfg.num - len(todo)
+    write_manifest(cfg)
+    t0 = time.perf_counter()
+    steps: list[int] = []
+    errors: list[str] = []
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
+    with Progress(*columns, disable=not progress or not todo) as bar:
+        task = bar.add_task(f"demos {cfg.skill}", total=len(todo))
+        if cfg.workers == 0 or len(todo) <= 1:
+            writer = DemoWriter(cfg) if todo else None
+            for i in todo:
+                n, _ = writer.write(i)
+                steps.append(n)
+                bar.advance(task)
+        else:
+            import multiprocessing as mp
+
+            ctx = mp.get_context("spawn")
+            queue = ctx.Queue()
+            n_workers = min(cfg.workers, len(todo))
+            procs = [ctx.Process(target=_worker, args=(asdict(cfg), todo[w::n_workers], queue), daemon=True)
+                     for w in range(n_workers)]
+            for p in procs:
+                p.start()
+            alive = n_workers
+            try:
+                while alive:
+                    kind, _, n, info = queue.get()
+                    if kind == "done":
+                        steps.append(n)
+                        bar.advance(task)
+                    elif kind == "error":
+                        errors.append(str(info))
+                    else:
+                        alive -= 1
+            finally:
+                for p in procs:
+                    p.join(timeout=5)
+                    if p.is_alive():
+                        p.terminate()
+    write_manifest(cfg)
+    if errors:
+        raise RuntimeError(f"{len(errors)} demo worker(s) failed; first error:\n{errors[0]}")
+    return {"generated": len(steps), "skipped": skipped, "wall_s": time.perf_counter() - t0,
+            "mean_steps": float(np.mean(steps)) if steps else 0.0}

@@ -1,0 +1,168 @@
+"""Execute one skill step in the simulator: approach pose -> controller loop -> idle steps -> park.
+
+:func:`run_skill` is the one place where a skill meets the simulator; the task generators (experts),
+the oracle (heuristic controllers), demonstration recording and the plan executor (learned policies)
+all go through it. The attended piece is tracked by particle identity: ``piece`` selects points of the
+observed cloud (the simulator observes a fixed particle subset), and every env step the controller
+sees the current positions of exactly those points.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+
+__all__ = ["SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
+
+
+@dataclass
+class Trajectory:
+    """What :func:`run_skill` recorded (``record=True``): ``T`` controller steps.
+
+    dough: ``(T+1, P, 3)`` float32 observed dough before each step and after the last;
+    tool_points: ``(T+1, Tp, 3)``; tool_pose: ``(T+1, 7)``; action: ``(T, A)`` float32.
+    """
+
+    dough: list[np.ndarray] = field(default_factory=list)
+    tool_points: list[np.ndarray] = field(default_factory=list)
+    tool_pose: list[np.ndarray] = field(default_factory=list)
+    action: list[np.ndarray] = field(default_factory=list)
+
+    def add_obs(self, obs: Any, tool: str) -> None:
+        self.dough.append(np.asarray(obs.dough, np.float32))
+        self.tool_points.append(np.asarray(obs.tool_points[tool], np.float32))
+        self.tool_pose.append(np.asarray(obs.tool_poses[tool], np.float32))
+
+    def arrays(self, action_dim: int) -> dict[str, np.ndarray]:
+        act = np.stack(self.action).astype(np.float32) if self.action else np.zeros((0, action_dim), np.float32)
+        return {
+            "dough": np.stack(self.dough).astype(np.float32),
+            "tool_points": np.stack(self.tool_points).astype(np.float32),
+            "tool_pose": np.stack(self.tool_pose).astype(np.float32),
+            "action": act,
+        }
+
+
+@dataclass
+class SkillRun:
+    """Outcome of one skill step.
+
+    Attributes:
+        skill: skill name.
+        steps: controller env steps taken (idle steps not counted).
+        done: the controller reported done (``False``: it hit ``max_steps``).
+        approach: the tool pose the step started from.
+        wall_s: wall-clock seconds of the whole step (approach to park).
+        trajectory: the recorded steps, when asked for.
+    """
+
+    skill: str
+    steps: int
+    done: bool
+    approach: ToolPose
+    wall_s: float
+    trajectory: Trajectory | None = None
+
+
+def piece_indices(piece: Any, num_points: int) -> np.ndarray:
+    """Indices ``(K,)`` into the observed cloud from a boolean mask ``(P,)`` or an index array."""
+    arr = np.asarray(piece)
+    if arr.dtype == bool:
+        if arr.shape != (num_points,):
+            raise InputError(f"piece mask must have shape ({num_points},), got {arr.shape}")
+        idx = np.flatnonzero(arr)
+    else:
+        idx = arr.astype(np.int64).reshape(-1)
+        if idx.size and (idx.min() < 0 or idx.max() >= num_points):
+            raise InputError(f"piece indices must lie in [0, {num_points}), got [{idx.min()}, {idx.max()}]")
+    if idx.size == 0:
+        raise InputError("the attended piece is empty (no observed points selected)")
+    return idx
+
+
+def skill_observation(obs: Any, tool: str, idx: np.ndarray, goal: np.ndarray | None) -> SkillObservation:
+    """The controller's view of a simulator observation: attended piece ``idx``, goal, tool, scene."""
+    return SkillObservation(
+        piece=obs.dough[idx],
+        goal=None if goal is None else np.asarray(goal, np.float32),
+        tool_points=np.asarray(obs.tool_points[tool], np.float32),
+        tool_pose=np.asarray(obs.tool_poses[tool], np.float32),
+        scene=obs.dough,
+    )
+
+
+def run_skill(
+    sim: Any,
+    skill: Skill,
+    controller: Controller,
+    piece: Any,
+    goal_points: np.ndarray | None,
+    *,
+    max_steps: int | None = None,
+    idle_steps: int = 10,
+    approach: ToolPose | None = None,
+    park: bool = True,
+    record: bool = False,
+) -> SkillRun:
+    """Run one skill step in ``sim`` and return what happened.
+
+    Args:
+        sim: a :class:`pasta.sim.Simulator` with a scene loaded.
+        skill: the skill (its ``tool`` is the one driven).
+        controller: expert, heuristic controller or learned policy of that skill.
+        piece: the attended piece, as a boolean mask ``(P,)`` or indices into the observed cloud.
+        goal_points: ``(G, 3)`` sub-goal of the step (all produced pieces), or ``None`` (experts).
+        max_steps: controller step limit (default: the skill's ``max_steps`` or 50).
+        idle_steps: zero-action env steps after the controller stops (the dough settles).
+        approach: start pose of the tool (default: ``skill.approach_pose(piece, goal, scene=...)``).
+        park: teleport the tool to ``skill.park_pose()`` at the end.
+        record: keep the observations and actions (:class:`Trajectory`).
+
+    The loop: the controller sees the observation and returns ``(action, done)``; a done with an
+    all-zero action ends the step without stepping, a done with a non-zero action is applied and then
+    ends the step (the last action of a demonstration).
+    """
+    t0 = time.perf_counter()
+    tool = skill.tool
+    obs = sim.observe()
+    idx = piece_indices(piece, len(obs.dough))
+    if max_steps is None:
+        max_steps = int(getattr(skill, "max_steps", 50))
+    if approach is None:
+        try:
+            approach = skill.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)
+        except TypeError:  # a skill whose approach_pose has the two-argument contract signature
+            approach = skill.approach_pose(obs.dough[idx], goal_points)
+    sim.set_tool_pose(tool, approach.position, yaw=approach.yaw)
+    obs = sim.observe()
+    traj = Trajectory() if record else None
+    view = skill_observation(obs, tool, idx, goal_points)
+    controller.reset(view)
+    steps, done = 0, False
+    while steps < max_steps:
+        action, done = controller.act(view)
+        action = np.clip(np.asarray(action, np.float32).reshape(-1), -1.0, 1.0)
+        if done and not np.any(action):
+            break
+        if traj is not None:
+            traj.add_obs(obs, tool)
+            traj.action.append(action)
+        sim.step({tool: action})
+        steps += 1
+        obs = sim.observe()
+        view = skill_observation(obs, tool, idx, goal_points)
+        if done:
+            break
+    if traj is not None:
+        traj.add_obs(obs, tool)
+    for _ in range(max(0, idle_steps)):
+        sim.step()
+    if park:
+        pose = skill.park_pose()
+        sim.set_tool_pose(tool, pose.position, yaw=pose.yaw)
+    return SkillRun(skill.name, steps, bool(done), approach, time.perf_counter() - t0, traj)
