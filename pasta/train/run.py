@@ -19,7 +19,7 @@ from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
 from pasta.train.data import load_demos, split_by_demo
 from pasta.train.feasibility import FeasibilityTask, FeasibilityTrainConfig, positive_tuples
 from pasta.train.latents import encode_demos
-from pasta.train.loop import LoopConfig, fit
+from pasta.train.loop import LoopConfig, fit, torch_threads
 from pasta.train.vae import VAETask, VAETrainConfig, collect_clouds, vae_metrics
 
 MODULES = ("vae", "feasibility", "cost")
@@ -77,7 +77,8 @@ def train(module: str, data: str | Path, out: str | Path, overrides: Mapping[str
         the held-out figures, also written to ``metrics.json`` beside the weights.
     """
     loop, cfg = parse_overrides(module, overrides or {})
-    return {"vae": _train_vae, "feasibility": _train_feasibility, "cost": _train_cost}[module](Path(data), Path(out), loop, cfg)
+    with torch_threads(loop.threads):  # data preparation too, not only the loop
+        return {"vae": _train_vae, "feasibility": _train_feasibility, "cost": _train_cost}[module](Path(data), Path(out), loop, cfg)
 
 
 def _split(data: Path, cfg: Any, loop: LoopConfig, skills: list[str] | None = None):

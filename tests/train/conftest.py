@@ -6,9 +6,9 @@ from pasta.train.synthetic import write_synthetic_dataset
 TINY = {
     "vae": {"epochs": "2", "width": "16", "fold_hidden": "16", "input_points": "64", "target_points": "64",
             "emd_points": "16", "num_points": "128", "stride": "2", "progress": "false", "batch_size": "8"},
-    "feasibility": {"epochs": "2", "hidden": "16", "num_points": "128", "match_points": "64", "progress": "false"},
+    "feasibility": {"epochs": "2", "hidden": "16", "num_points": "128", "match_points": "64", "progress": "false", "threads": "1"},
     "cost": {"epochs": "2", "hidden": "16", "num_points": "128", "label_points": "64", "pairs_per_entity": "4",
-             "stride": "2", "progress": "false"},
+             "stride": "2", "progress": "false", "threads": "1"},
 }
 
 

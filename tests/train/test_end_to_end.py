@@ -69,3 +69,14 @@ def test_cli_errors(three_demos, tmp_path, capsys):
     assert main(["train", "feasibility", f"data={three_demos}", f"out={tmp_path}"]) == 2
     assert "skill=NAME" in capsys.readouterr().err
     assert main(["train", "vae", f"data={tmp_path / 'missing'}", f"out={tmp_path}"]) == 2
+
+
+def test_flat_vae_for_the_flat_baseline(three_demos, tmp_path, tiny):
+    from pasta.nn.config import FlatEncoderConfig
+
+    figures = train("vae", three_demos, tmp_path, {**tiny["vae"], "epochs": "1", "flat": "true"})
+    assert figures["heldout_examples"] == 3  # one held-out demo, states 0, 2 and 4
+    encoder = get_plugins().encoders.create("flat", FlatEncoderConfig(weights=str(tmp_path / "flat_vae")))
+    check_encoder(encoder)
+    dough = np.load(three_demos / "cut" / "demo_00000.npz", allow_pickle=False)["dough"]
+    assert encoder.encode_scene(dough[-1]).shape == (1, 5)
