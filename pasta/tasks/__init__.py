@@ -15,7 +15,7 @@ from pasta.tasks.base import (
     TaskInstance,
     cache_root,
     split_pieces,
-    test_seeds,
+    fixed_test_seeds,
 )
 from pasta.tasks.executor import SkillRun, Trajectory, piece_indices, run_skill, skill_observation
 
@@ -34,7 +34,7 @@ __all__ = [
     "skill_observation",
     "split_pieces",
     "task_names",
-    "test_seeds",
+    "fixed_test_seeds",
 ]
 
 

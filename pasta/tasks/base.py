@@ -30,6 +30,8 @@ from pasta.tasks.npz import read_npz, write_npz
 
 #: bump when generated instances change for the same seed and settings (invalidates caches)
 GENERATOR_VERSION = 1
+#: task settings that only change the scoring, not the generated instances (left out of the cache key)
+SCORING_FIELDS = ("threshold", "emd_points", "emd_seed")
 #: the fixed test sets use these seeds (demonstrations and training scenes use other streams)
 TEST_SEED_BASE = 1000
 
@@ -39,7 +41,7 @@ def cache_root() -> Path:
     return Path(os.environ.get("PASTA_TASK_CACHE") or Path.home() / ".cache" / "pasta" / "tasks")
 
 
-def test_seeds(num: int = 20) -> list[int]:
+def fixed_test_seeds(num: int = 20) -> list[int]:
     """The seeds of a task's fixed test set of ``num`` instances."""
     if num < 1:
         raise InputError(f"num must be >= 1, got {num}")
@@ -248,7 +250,8 @@ class Task:
             info = get_plugins().skills.info(name)
             cfg = self.skill(name).config
             skills[name] = {"version": info.version, "config": asdict(cfg) if cfg is not None else None}
-        blob = json.dumps({"task": self.name, "config": asdict(self.config), "sim": asdict(self.sim_config),
+        config = {k: v for k, v in asdict(self.config).items() if k not in SCORING_FIELDS}
+        blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config),
                            "skills": skills, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)
         return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
@@ -290,9 +293,9 @@ class Task:
         return inst
 
     def test_set(self, num: int = 20, *, sim: Any = None, cache: bool = True, progress: Any = None) -> list[TaskInstance]:
-        """The fixed test set: instances of :func:`test_seeds` ``(num)``."""
+        """The fixed test set: instances of :func:`fixed_test_seeds` ``(num)``."""
         out = []
-        for seed in test_seeds(num):
+        for seed in fixed_test_seeds(num):
             if sim is None and not (cache and self.cache_path(seed).exists()):
                 sim = self.make_sim()
             out.append(self.instance(seed, sim=sim, cache=cache))

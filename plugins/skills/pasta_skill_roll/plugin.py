@@ -21,6 +21,8 @@ class RollConfig:
             times U(min, max).
         turn_inset: the roller turns this far (in radii) inside the ends of the allowed span.
         length_tolerance: done when the rolled length is within this of the target.
+        thickness_tolerance: the heuristic is done only when the piece is at most this much thicker
+            than the goal.
         min_passes: done only after this many passes at the final height.
         max_passes: done after this many passes at the final height even if the piece is short or thick.
         springback: the rolled dough ends this much thinner than the gap under the roller; the heuristic
@@ -38,6 +40,7 @@ class RollConfig:
     length_max_factor: float = 1.3
     turn_inset: float = 0.5
     length_tolerance: float = 0.005
+    thickness_tolerance: float = 0.002
     min_passes: int = 2
     max_passes: int = 6
     springback: float = 0.0

@@ -11,7 +11,8 @@ length long and has seen ``min_passes`` passes at that height; or after ``max_pa
 The expert gets ``height`` (gap under the roller), ``length`` (target extent along the rolling direction)
 and ``yaw`` (rolling direction, 0 = along x) as parameters; the heuristic controller measures them on
 the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``), extent along its main
-horizontal axis, and that axis.
+horizontal axis, and that axis; it also waits until the piece is no thicker than the goal (plus
+``thickness_tolerance``), since an expert that hit ``max_passes`` left a goal shorter than its target.
 """
 
 from __future__ import annotations
@@ -76,6 +77,7 @@ class RollController(Controller):
         piece = np.asarray(obs.piece, np.float64)
         if self.params is not None:
             self.height, self.length, self.yaw = (float(self.params[k]) for k in ("height", "length", "yaw"))
+            self.max_thickness = float("inf")
         else:
             if obs.goal is None or len(obs.goal) == 0:
                 raise InputError("roll controller: the goal piece is empty")
@@ -84,6 +86,7 @@ class RollController(Controller):
             self.height = max(thickness(goal) + cfg.springback, 0.005)
             lo, hi = extent(goal, axis(self.yaw))
             self.length = hi - lo
+            self.max_thickness = thickness(goal) + cfg.thickness_tolerance
         self.u = axis(self.yaw)
         self.floor = float(np.percentile(piece[:, 1], 1))
         lo, hi = extent(piece, self.u)
@@ -101,7 +104,7 @@ class RollController(Controller):
         lo, hi = extent(obs.piece, self.u)
         y_target = self.floor + self.height + ROLLER_RADIUS
         at_height = abs(pos[1] - y_target) < 1e-3
-        long_enough = (hi - lo) >= self.length - cfg.length_tolerance
+        long_enough = (hi - lo) >= self.length - cfg.length_tolerance and thickness(obs.piece) <= self.max_thickness
         if at_height and (long_enough and self.passes >= cfg.min_passes or self.passes >= cfg.max_passes):
             return np.zeros(4, np.float32), True
         inset = cfg.turn_inset * ROLLER_RADIUS

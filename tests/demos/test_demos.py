@@ -1,0 +1,69 @@
+"""Demonstration generation (argument checks, a 3-demo dataset) and the dataset loader."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from pasta.cli import main
+from pasta.core.errors import ConfigError, InputError
+from pasta.demos import DemoConfig, DemoDataset, generate_demos, validate
+
+
+def test_bad_arguments_fail_before_any_work(tmp_path, capsys):
+    with pytest.raises(ConfigError, match="unknown skill 'knead'.*known skills: cut, push, roll"):
+        validate(DemoConfig(skill="knead", out=str(tmp_path)))
+    with pytest.raises(ConfigError, match="num must be >= 1"):
+        validate(DemoConfig(num=0, out=str(tmp_path)))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(ConfigError, match="cannot write"):
+        validate(DemoConfig(out=str(blocker / "sub")))
+    assert main(["demos", "skill=knead", f"out={tmp_path}"]) == 2
+    assert "known skills" in capsys.readouterr().err
+    assert main(["demos", "num=-3", f"out={tmp_path}"]) == 2
+    assert main(["demos", "bogus=1"]) == 2
+    assert not list(tmp_path.glob("*/demo_*.npz"))
+
+
+@pytest.mark.sim
+def test_generate_and_load_three_demos(tmp_path):
+    cfg = DemoConfig(skill="push", num=3, out=str(tmp_path), workers=0, seed=5, n_particles=2000, obs_points=400)
+    summary = generate_demos(cfg, progress=False)
+    assert summary["generated"] == 3 and summary["skipped"] == 0
+    files = sorted((tmp_path / "push").glob("demo_*.npz"))
+    assert [f.name for f in files] == ["demo_00000.npz", "demo_00001.npz", "demo_00002.npz"]
+    with np.load(files[0], allow_pickle=False) as z:
+        t = z["action"].shape[0]
+        assert t > 5 and z["action"].shape == (t, 4) and z["action"].dtype == np.float32
+        assert z["dough"].shape == (t + 1, 400, 3) and z["dough"].dtype == np.float32
+        assert z["tool_points"].shape[0] == t + 1 and z["tool_pose"].shape == (t + 1, 7)
+        assert z["skill"].shape == () and str(z["skill"]) == "push"
+        params = json.loads(str(z["params"]))
+        assert {"target_x", "target_z"} <= set(params)
+        assert np.abs(z["action"]).max() <= 1.0
+    manifest = json.loads((tmp_path / "manifest.json").read_text())
+    assert manifest["counts"] == {"push": 3} and "taichi" in manifest["versions"]
+    # resumable: nothing left to do; a deleted demo is regenerated identically
+    first = files[1].read_bytes()
+    files[1].unlink()
+    again = generate_demos(cfg, progress=False)
+    assert again["generated"] == 1 and again["skipped"] == 2
+    assert files[1].read_bytes() == first
+
+    data = DemoDataset(tmp_path)
+    assert data.skills == ["push"] and len(data) == 3
+    batches = list(data.batches("push", 8, seed=0, num_batches=2))
+    assert len(batches) == 2
+    b = batches[0]
+    assert b.obs.shape == (8, 400, 3) and b.goal.shape == (8, 400, 3) and b.action.shape == (8, 4)
+    assert b.tool.shape[0] == 8 and b.done.shape == (8,)
+    with pytest.raises(InputError, match="no 'cut'"):
+        next(data.batches("cut", 4))
+
+
+def test_dataset_errors(tmp_path):
+    with pytest.raises(InputError, match="manifest"):
+        DemoDataset(tmp_path)

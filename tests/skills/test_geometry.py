@@ -1,0 +1,175 @@
+"""Approach poses, parameter sampling and controllers as pure functions of synthetic point clouds."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from skill_helpers import box, drive
+
+from pasta.core import InputError, MissingComponentError
+from pasta_skill_cut.skill import KNIFE_TIP, plan_from_goal, split_by_x_gap
+from pasta_skill_push.skill import placement
+from pasta_skill_roll.skill import extent, main_yaw, thickness
+
+FLOOR = 0.02
+DOUGH = box((0.75, FLOOR + 0.04, 0.5), (0.3, 0.08, 0.07), n=1500)
+
+
+# -- cut ---------------------------------------------------------------------------------------
+def test_knife_approach_is_above_the_piece(skills):
+    pose = skills["cut"].approach_pose(DOUGH, DOUGH)
+    c = DOUGH.mean(0)
+    assert pose.position[0] == pytest.approx(c[0], abs=1e-6) and pose.position[2] == pytest.approx(c[2], abs=1e-6)
+    assert pose.position[1] - KNIFE_TIP > DOUGH[:, 1].max() - 1e-3
+    assert pose.yaw == 0.0
+
+
+def test_park_poses_are_high_and_distinct(skills):
+    poses = [skills[n].park_pose().position for n in ("cut", "push", "roll")]
+    assert all(p[1] > 0.5 for p in poses) and len({p for p in poses}) == 3
+
+
+def test_cut_params_lie_on_the_piece(skills):
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        p = skills["cut"].sample_expert_params(DOUGH, rng)
+        assert DOUGH[:, 0].min() + 0.099 <= p["cut_x"] <= DOUGH[:, 0].max() - 0.099
+        assert -0.08 <= p["shift"] <= -0.06
+
+
+def test_split_by_x_gap_finds_the_separation():
+    left = box((0.4, 0.06, 0.5), (0.1, 0.08, 0.07), n=300, seed=1)
+    right = box((0.6, 0.06, 0.5), (0.2, 0.08, 0.07), n=600, seed=2)
+    assert 0.45 < split_by_x_gap(np.concatenate([left, right])) < 0.5
+
+
+def test_cut_plan_from_goal_uses_the_point_fraction():
+    piece = box((0.75, 0.06, 0.5), (0.3, 0.08, 0.07), n=3000, seed=3)
+    cut_x = 0.68  # left part: 0.6 .. 0.68, a fraction 0.08 / 0.3 of the points
+    left, right = piece[piece[:, 0] < cut_x], piece[piece[:, 0] >= cut_x]
+    goal = np.concatenate([left - [0.1, 0, 0], right])
+    plan = plan_from_goal(piece, goal)
+    assert plan.cut_x == pytest.approx(cut_x, abs=0.005)
+    assert plan.direction == -1 and plan.centroid_target == pytest.approx(left[:, 0].mean() - 0.1, abs=1e-4)
+    mirrored = plan_from_goal(piece, np.concatenate([left, right + [0.1, 0, 0]]))
+    assert mirrored.direction == 1
+
+
+def test_cut_expert_aligns_descends_reenters_and_separates(skills):
+    cut = skills["cut"]
+    params = {"cut_x": 0.7, "shift": -0.07}
+    start = cut.approach_pose(DOUGH).position
+    actions, pos, done = drive(cut.expert(params), DOUGH, None, start, "knife")
+    assert done
+    assert pos[0] == pytest.approx(0.63, abs=2.5e-3)  # cut_x + shift, within the tolerance
+    acts = np.array(actions)
+    assert (acts[:, 1] < 0).any() and (acts[:, 1] > 0).any()  # down, up (out of the cut) and down again
+    assert cut.config.max_steps >= len(actions)
+
+
+def test_cut_heuristic_needs_two_goal_pieces(skills):
+    ctrl = skills["cut"].controller()
+    with pytest.raises(InputError):
+        drive(ctrl, DOUGH, None, (0.75, 0.3, 0.5), "knife")
+
+
+def test_cut_expert_rejects_missing_params(skills):
+    with pytest.raises(InputError, match="cut_x"):
+        skills["cut"].expert({"shift": -0.1})
+
+
+# -- push --------------------------------------------------------------------------------------
+PIECE = box((0.6, FLOOR + 0.04, 0.5), (0.11, 0.08, 0.07), n=800, seed=4)
+
+
+@pytest.mark.parametrize("target", [(0.3, 0.5), (0.35, 0.7), (0.6, 0.2), (0.8, 0.5)])
+def test_pusher_sits_behind_the_piece_facing_the_target(skills, target):
+    goal = PIECE - PIECE.mean(0) + [target[0], PIECE.mean(0)[1], target[1]]
+    pose = skills["push"].approach_pose(PIECE, goal)
+    c = PIECE.mean(0)[[0, 2]]
+    u = np.array(target) - c
+    u /= np.linalg.norm(u)
+    rel = np.array([pose.position[0], pose.position[2]]) - c
+    assert rel @ u < -0.05  # behind, on the side away from the push direction
+    normal = np.array([math.cos(pose.yaw), -math.sin(pose.yaw)])
+    assert abs(normal @ u) > 0.99  # face perpendicular to the push line
+    assert pose.position[1] < 0.1  # low
+
+
+def test_pusher_avoids_a_neighbouring_piece():
+    from pasta_skill_push.plugin import PushConfig
+
+    neighbour = box((0.71, FLOOR + 0.04, 0.5), (0.08, 0.08, 0.07), n=500, seed=5)  # 0.03 gap to the right
+    scene = np.concatenate([PIECE, neighbour])
+    cfg = PushConfig()
+    pose = placement(PIECE, np.array([0.3, 0.75]), scene, cfg)
+    normal = np.array([math.cos(pose.yaw), -math.sin(pose.yaw)])
+    t = np.array([-normal[1], normal[0]])
+    rel = neighbour[:, [0, 2]] - np.array([pose.position[0], pose.position[2]])
+    gap = np.maximum(np.abs(rel @ normal) - 0.015, np.abs(rel @ t) - 0.1)
+    assert gap.min() >= cfg.clearance
+
+
+def test_push_controller_moves_along_the_line_and_stops(skills):
+    ctrl = skills["push"].expert({"target_x": 0.3, "target_z": 0.6})
+    obs_goal = None
+    actions, _, done = drive(ctrl, PIECE, obs_goal, (0.7, 0.05, 0.5), "pusher", max_steps=5)
+    a = actions[0]
+    u = np.array([0.3, 0.6]) - PIECE.mean(0)[[0, 2]]
+    assert np.dot([a[0], a[2]], u) > 0 and a[1] == 0 and a[3] == 0 and not done
+    at_target = PIECE - PIECE.mean(0) + [0.3, 0.06, 0.6]
+    ctrl2 = skills["push"].controller()
+    _, _, done = drive(ctrl2, at_target, at_target, (0.4, 0.05, 0.6), "pusher", max_steps=3)
+    assert done
+
+
+def test_push_params_sample_the_spreading_area(skills):
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        p = skills["push"].sample_expert_params(PIECE, rng)
+        assert 0.22 <= p["target_x"] <= 0.32 and 0.3 <= p["target_z"] <= 0.7
+
+
+# -- roll --------------------------------------------------------------------------------------
+def test_roll_measures_on_clouds():
+    flat = box((0.27, FLOOR + 0.009, 0.5), (0.3, 0.018, 0.12), n=2000, seed=6)
+    assert thickness(flat) == pytest.approx(0.018 * 0.94, abs=0.002)
+    lo, hi = extent(flat, np.array([1.0, 0.0]))
+    assert hi - lo == pytest.approx(0.3 * 0.98, abs=0.01)
+    assert main_yaw(flat, 1.3) == pytest.approx(0.0, abs=0.05)
+    turned = flat.copy()
+    turned[:, [0, 2]] = (flat[:, [0, 2]] - [0.27, 0.5]) @ np.array([[0.0, 1.0], [-1.0, 0.0]]) + [0.27, 0.5]
+    assert abs(main_yaw(turned, 1.3)) == pytest.approx(math.pi / 2, abs=0.05)
+    assert main_yaw(box((0.3, 0.05, 0.5), (0.1, 0.08, 0.1)), 1.3) == 0.0
+
+
+def test_roller_approach_is_above_the_piece(skills):
+    pose = skills["roll"].approach_pose(PIECE)
+    assert pose.position[1] - 0.03 > PIECE[:, 1].max() - 1e-3
+    assert pose.position[0] == pytest.approx(PIECE[:, 0].mean(), abs=1e-6)
+
+
+def test_roll_controller_presses_and_rolls_back_and_forth(skills):
+    ctrl = skills["roll"].expert({"height": 0.017, "length": 0.3})
+    start = skills["roll"].approach_pose(PIECE).position
+    actions, pos, done = drive(ctrl, PIECE, None, start, "roller", max_steps=100)
+    acts = np.array(actions)
+    assert done and pos[1] == pytest.approx(PIECE[:, 1].min() + 0.017 + 0.03, abs=2e-3)  # max_passes at height
+    assert acts[0, 2] < 0  # going down
+    assert (acts[:, 0] > 0).any() and (acts[:, 0] < 0).any()  # back and forth
+
+
+def test_roll_controller_done_when_long_and_low(skills):
+    flat = box((0.27, FLOOR + 0.009, 0.5), (0.3, 0.018, 0.12), n=2000, seed=7)
+    ctrl = skills["roll"].controller()
+    start = (0.27, FLOOR + 0.009 + 0.0 + 0.03, 0.5)
+    _, _, done = drive(ctrl, flat, flat, start, "roller", max_steps=200)
+    assert done
+
+
+def test_skills_have_no_policy_yet(skills):
+    for s in skills.values():
+        with pytest.raises(MissingComponentError, match=s.name):
+            s.policy()
