@@ -13,9 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from pasta.core.errors import ConfigError, InputError, did_you_mean
+from pasta.core.errors import ConfigError, did_you_mean
 
 HELP = "plan and execute one task instance in the simulator and score it (task=crs seed=S [planner=...] [controller=...])"
 
@@ -23,12 +21,11 @@ EPILOG = """examples:
   pasta run task=crs seed=3                                   # plan with the default planner, learned policies
   pasta run task=crs seed=3 controller=heuristic log=runs/crs3.mcap
   pasta run task=crs seed=3 planner=sampling execute.closed_loop=true
-keys of this command: task models controller log horizon execute.<field> (see docs/policies.md);
+keys of this command: task models controller log horizon skeleton=auto|true|false execute.<field>
+(see docs/policies.md; the skeleton is given for crs_twice only, as in the paper);
 every other key=value goes to the run config (seed, planner, planner.*)."""
 
-#: success thresholds on the normalised improvement (PASTA paper; strict ">")
-THRESHOLDS = {"cut_rearrange": 0.80, "crs": 0.83, "crs_twice": 0.83, "lift_spread": 0.88, "gather_move": 0.65}
-_OWN = ("task", "models", "controller", "log", "horizon")
+_OWN = ("task", "models", "controller", "log", "horizon", "skeleton")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -80,44 +77,6 @@ def _convert(key: str, raw: str, kind: Any) -> Any:
     return raw
 
 
-def _first(obj: Any, names: tuple[str, ...]) -> Any:
-    for n in names:
-        value = obj.get(n) if isinstance(obj, dict) else getattr(obj, n, None)
-        if value is not None:
-            return value
-    return None
-
-
-def task_instance(name: str, seed: int) -> dict[str, Any]:
-    """The task's instance for ``seed`` as ``{"particles" | "state", "goal", "sim_config", "horizon", "skeleton", "skills"}``.
-
-    Contract assumed of a registered task (``pasta_register_tasks``): the factory builds an object with
-    ``instance(seed)`` (or ``make``/``generate``/``sample``) returning an object or dict with the initial
-    ``particles`` (N, 3) or a simulator ``state``, the ``goal`` cloud (G, 3) (a full target particle array
-    of the same N is observed through the same particle subset), and optionally ``sim_config``,
-    ``horizon``, ``skeleton`` and ``skills``.
-    """
-    from pasta.plugins import get_plugins
-
-    task = get_plugins().tasks.create(name)
-    maker = _first(task, ("instance", "make", "generate", "sample"))
-    if maker is None:
-        raise InputError(f"task '{name}' has no instance(seed) method")
-    inst = maker(seed)
-    out = {
-        "particles": _first(inst, ("particles", "initial", "init", "dough")),
-        "state": _first(inst, ("state", "initial_state")),
-        "goal": _first(inst, ("goal", "target", "goal_points")),
-        "sim_config": _first(inst, ("sim_config", "sim_cfg")) or _first(task, ("sim_config", "sim_cfg")),
-        "horizon": _first(inst, ("horizon",)) or _first(task, ("horizon",)),
-        "skeleton": _first(inst, ("skeleton",)) or _first(task, ("skeleton",)),
-        "skills": _first(inst, ("skills",)) or _first(task, ("skills",)),
-    }
-    if out["goal"] is None or (out["particles"] is None and out["state"] is None):
-        raise InputError(f"task '{name}' instance lacks the initial particles/state or the goal cloud")
-    return out
-
-
 def run(args: argparse.Namespace) -> int:
     from pasta.config import load_config, section, to_yaml
     from pasta.execute import ExecuteConfig
@@ -141,9 +100,11 @@ def run(args: argparse.Namespace) -> int:
     cfg = load_config(rest, plugins=plugins)
     exe = ExecuteConfig(**execute_kw)
     name, seed = own["task"], int(cfg.seed)
-    inst = task_instance(name, seed)
-    skill_names = list(inst["skills"] or plugins.skills.names())
-    skills = [plugins.skills.create(n) for n in skill_names]
+    from pasta.tasks import get_task
+
+    task = get_task(name)
+    exe = dataclasses.replace(exe, emd_points=task.config.emd_points, emd_seed=task.config.emd_seed)
+    skills = [task.skill(n) for n in plugins.skills.names()]
     choice = {g: v for g, v in (r.partition("=")[::2] for r in rest) if g in groups}
 
     def conf(key: str) -> Any:
@@ -162,21 +123,14 @@ def run(args: argparse.Namespace) -> int:
             load_policy(models / POLICY_DIR / s.name, s, device=str(cfg.device))
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
 
-    from pasta.sim import SimConfig, Simulator
-
-    sim_cfg = inst["sim_config"] or SimConfig()
-    if isinstance(sim_cfg, dict):
-        sim_cfg = SimConfig(**sim_cfg)
-    sim = Simulator(sim_cfg, seed=seed)
-    if inst["state"] is not None:
-        sim.set_state(inst["state"])
-        obs = sim.observe()
-    else:
-        obs = sim.reset(np.asarray(inst["particles"], np.float32), seed=seed)
-    goal = np.asarray(inst["goal"], np.float32)
-    if inst["state"] is None and goal.shape == np.shape(inst["particles"]) and len(goal) != len(obs.dough):
-        goal = goal[obs.dough_index]  # the same particles as the observation
-    horizon = int(own.get("horizon") or inst["horizon"] or 3)
+    inst = task.instance(seed)  # generated by the task's expert chain (cached)
+    sim = task.make_sim()
+    sim.set_state(inst.init)
+    goal = inst.goal  # the observed goal cloud: the same particles as the observation
+    horizon = int(own.get("horizon") or task.horizon)
+    given = own.get("skeleton", "auto").lower()
+    use_skeleton = given in ("true", "1", "yes") or (given == "auto" and name == "crs_twice")  # as in the paper
+    skeleton = tuple(inst.skeleton) if use_skeleton else None
 
     logger = None
     if own.get("log"):
@@ -188,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
                            metadata=meta)
     try:
         episode = run_episode(sim, goal, planner=planner, skills=skills, encoder=encoder, cost=cost, horizon=horizon,
-                              seed=seed, skeleton=inst["skeleton"], cfg=exe, logger=logger)
+                              seed=seed, skeleton=skeleton, cfg=exe, logger=logger)
     finally:
         if logger is not None:
             logger.close()
@@ -199,9 +153,9 @@ def run(args: argparse.Namespace) -> int:
               f"{' (done)' if s.done else ''}, improvement {s.normalized_improvement:.3f}")
     if res.diverged:
         print(f"simulation diverged: {res.diverged}", file=sys.stderr)
-    threshold = THRESHOLDS.get(name)
-    verdict = "" if threshold is None else f" ({'success' if res.normalized_improvement > threshold else 'failure'}, threshold {threshold})"
-    print(f"task {name} seed {seed}: normalised improvement {res.normalized_improvement:.3f}{verdict}")
+    score = task.score(res.final_dough, inst)
+    verdict = "success" if score.success else "failure"
+    print(f"task {name} seed {seed}: normalised improvement {score.improvement:.3f} ({verdict}, threshold {task.threshold})")
     if own.get("log"):
         print(f"run logged to {own['log']} (open in Foxglove, or `pasta replay {own['log']}`)")
     return 0

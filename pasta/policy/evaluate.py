@@ -8,6 +8,7 @@ initial state with that goal cloud as its sub-goal, and is scored by the normali
 reproducibility (1 for a deterministic simulator).
 
 ``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=cut,push,roll] [out=FILE.json]``
+(the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
 prints the table of docs/policies.md.
 """
 
@@ -16,6 +17,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,17 +34,17 @@ CONTROLLERS = ("learned", "heuristic", "expert")
 
 @dataclass
 class SkillConfig:
-    """One held-out single-skill config: the initial particles ``(N, 3)``, the expert's params, the seed."""
+    """One held-out single-skill config: the initial simulator state, the expert's params, its index."""
 
     skill: str
     seed: int
-    particles: np.ndarray
+    state: Any
     params: dict[str, float]
 
 
 def default_scene(skill: str, rng: np.random.Generator, n: int, floor_y: float) -> np.ndarray:
-    """A single dough piece like the CRS stages: the long dough (cut), a cut-off piece on the right
-    (push), a piece in the spreading area (roll). ``(n, 3)`` float32."""
+    """Fallback single-piece scene when :mod:`pasta.demos` is not installed: the long CRS dough (cut), a
+    small piece right of the spreading area (push), a piece in it (roll). ``(n, 3)`` float32."""
     from pasta.sim import box_particles, crs_dough
 
     if skill == "cut":
@@ -52,25 +54,30 @@ def default_scene(skill: str, rng: np.random.Generator, n: int, floor_y: float) 
     return box_particles((x, floor_y + height / 2, 0.5), (length, height, depth), n, rng)
 
 
-def _scene_fn() -> Callable[[str, np.random.Generator, int, float], np.ndarray]:
-    """The demonstration generator's scene sampler when it exists (same distribution as training), else ours."""
+def _scene(skill: str, rng: np.random.Generator, n: int, floor_y: float) -> np.ndarray:
+    """The demonstration generator's scene distribution (:func:`pasta.demos.generate.demo_scene`), else ours."""
     try:
-        from pasta.demos import single_skill_scene  # type: ignore[attr-defined]
-
-        return single_skill_scene
+        from pasta.demos.generate import demo_scene
     except ImportError:
-        return default_scene
+        return default_scene(skill, rng, n, floor_y)
+    from pasta.sim import box_particles
+
+    (centre, size), = demo_scene(skill, rng, floor_y)
+    return box_particles(centre, size, n, rng)
 
 
-def make_configs(skill: Any, sim: Any, n: int, seed: int) -> list[SkillConfig]:
-    """``n`` configs of ``skill`` from seeds ``seed, seed + 1, ...``."""
-    scene = _scene_fn()
+def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10) -> list[SkillConfig]:
+    """``n`` configs of ``skill``: scene and expert parameters from the stream ``(seed, crc32(skill), i)``
+    (``pasta demos`` uses its own base seed, 0 by default, so a different ``seed`` gives held-out
+    configs), after ``settle_steps`` zero-action steps as in the demonstrations."""
     out = []
     for i in range(n):
-        rng = np.random.default_rng([seed + i, 7])
-        particles = scene(skill.name, rng, sim.cfg.n_particles, sim.floor_y)
-        params = skill.sample_expert_params(np.asarray(particles), rng)
-        out.append(SkillConfig(skill.name, seed + i, np.asarray(particles, np.float32), params))
+        rng = np.random.default_rng([seed, zlib.crc32(skill.name.encode()), i])
+        sim.reset(_scene(skill.name, rng, sim.cfg.n_particles, sim.floor_y), seed=int(rng.integers(2**31)))
+        for _ in range(settle_steps):
+            sim.step()
+        params = {k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
+        out.append(SkillConfig(skill.name, i, sim.get_state(), params))
     return out
 
 
@@ -87,8 +94,8 @@ def evaluate_skill(sim: Any, skill: Any, configs: Sequence[SkillConfig], control
     """Score every controller on every config; returns ``{controller: [per-config records]}``."""
     records: dict[str, list[dict[str, Any]]] = {c: [] for c in controllers}
     for cfg in configs:
-        sim.reset(cfg.particles, seed=cfg.seed)
-        start = sim.get_state()
+        sim.set_state(cfg.state)
+        start = cfg.state
         piece = sim.observe().dough
         approach = skill.expert_approach_pose(piece, cfg.params, scene=piece) if hasattr(skill, "expert_approach_pose") else None
         _run(sim, skill, skill.expert(cfg.params), None, approach)
@@ -151,7 +158,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     from pasta.sim import SimConfig, Simulator
 
     sim_kw = json.loads(args["sim"]) if "sim" in args else {}
-    sim = Simulator(SimConfig(**sim_kw))
+    sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
     results = {}
     for name in names:
         skill = get_plugins().skills.create(name)
