@@ -248,8 +248,11 @@ class Task:
         skills = {}
         for name in sorted(set(self.skeleton)):
             info = get_plugins().skills.info(name)
-            cfg = self.skill(name).config
-            skills[name] = {"version": info.version, "config": asdict(cfg) if cfg is not None else None}
+            skill = self.skill(name)
+            cfg = asdict(skill.config) if skill.config is not None else {}
+            # settings only the heuristic controllers read do not change generated instances
+            cfg = {k: v for k, v in cfg.items() if k not in getattr(skill, "heuristic_fields", ())}
+            skills[name] = {"version": info.version, "config": cfg}
         config = {k: v for k, v in asdict(self.config).items() if k not in SCORING_FIELDS}
         blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config),
                            "skills": skills, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)

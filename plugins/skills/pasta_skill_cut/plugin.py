@@ -25,10 +25,13 @@ class CutConfig:
         slow_distance: the knife slows down linearly over this last distance of the separation.
         slide_allowance: the heuristic stops the knife this far before the moved part's centroid target
             (the part slides on a little).
+        fix_tolerance: heuristic: the part that stayed is pushed to its goal centroid when it is farther
+            off than this.
+        fix_far_side: heuristic: also fix it when that needs the knife on its far side.
         tolerance: position tolerance of the knife and centroid targets.
     """
 
-    max_steps: int = 90
+    max_steps: int = 130
     clearance: float = 0.01
     tip_depth: float = 0.075
     offset_min: float = 0.10
@@ -38,6 +41,8 @@ class CutConfig:
     separate_speed: float = 0.3
     slow_distance: float = 0.02
     slide_allowance: float = 0.008
+    fix_tolerance: float = 0.006
+    fix_far_side: bool = True
     tolerance: float = 0.002
 
 

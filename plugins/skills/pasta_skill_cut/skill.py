@@ -8,7 +8,8 @@ every cut is a plane ``x = const``. One execution has three phases:
    into the cut again (the blade is only ~3 grid cells thick: dough pressed into it during the cut
    would otherwise drag the far piece along);
 3. separate: slide it sideways slowly (fast pushes make the dough slide on for a long time), pushing
-   one part away, then report done.
+   one part away, then report done. The heuristic then also pushes the other part to its goal
+   centroid (from its near side, or lifting the knife over it to push from the far side).
 
 The scripted expert gets the cut position and the knife travel as explicit parameters; the heuristic
 controller infers them from point clouds alone: the cut position is the quantile of the piece's ``x``
@@ -28,6 +29,7 @@ from pasta_skill_cut.plugin import SPEC, CutConfig
 
 KNIFE_TIP = KNIFE_HALF[1]  # the blade tip is this far below the knife centre
 STEP = TOOL_ACTION_SCALES["knife"][0]  # metres per env step at action 1
+FAR_LIMITS = (0.05, 0.95)  # knife centre x the simulator lets the knife reach (3 cells from the walls at 64^3)
 
 
 @dataclass(frozen=True)
@@ -40,6 +42,7 @@ class CutPlan:
     direction: int
     knife_target: float | None = None
     centroid_target: float | None = None
+    other_target: float | None = None  # heuristic: centroid x the other part should end at
 
 
 def split_by_x_gap(points: np.ndarray, min_fraction: float = 0.05) -> float:
@@ -67,9 +70,10 @@ def plan_from_goal(piece: np.ndarray, goal: np.ndarray) -> CutPlan:
     p_left, p_right = piece[piece[:, 0] < cut_x], piece[piece[:, 0] >= cut_x]
     d_left = g_left[:, 0].mean() - p_left[:, 0].mean() if len(p_left) else 0.0
     d_right = g_right[:, 0].mean() - p_right[:, 0].mean() if len(p_right) else 0.0
+    left_c, right_c = float(g_left[:, 0].mean()), float(g_right[:, 0].mean())
     if -d_left >= d_right:
-        return CutPlan(cut_x, -1, centroid_target=float(g_left[:, 0].mean()))
-    return CutPlan(cut_x, +1, centroid_target=float(g_right[:, 0].mean()))
+        return CutPlan(cut_x, -1, centroid_target=left_c, other_target=right_c)
+    return CutPlan(cut_x, +1, centroid_target=right_c, other_target=left_c)
 
 
 class CutController(Controller):
@@ -130,6 +134,8 @@ class CutController(Controller):
                     return action, False
         if self.phase == "done":
             return np.zeros(2, np.float32), True
+        if self.phase.startswith("fix"):
+            return self._fix_other(obs, x, y)
         # separate
         if plan.knife_target is not None:
             remaining = (plan.knife_target - x) * plan.direction
@@ -142,18 +148,89 @@ class CutController(Controller):
             remaining = (plan.centroid_target - moved[:, 0].mean()) * plan.direction
             allowance = cfg.slide_allowance
         if remaining <= cfg.tolerance + allowance:
-            self.phase = "done"
-            return np.zeros(2, np.float32), True
+            if plan.other_target is None:
+                self.phase = "done"
+                return np.zeros(2, np.float32), True
+            self.phase = "fix"
+            return self._fix_other(obs, x, y)
         speed = float(np.clip(remaining / max(cfg.slow_distance, 1e-6), 0.3, 1.0)) * cfg.separate_speed
         if plan.knife_target is not None:
             speed = min(speed, remaining / STEP)  # land exactly on the knife target
         return np.array([plan.direction * speed, 0.0], np.float32), False
 
 
+    @staticmethod
+    def _far_x(other: np.ndarray, away: int) -> float:
+        """Knife x just beyond the far end of ``other`` (the part lies on side ``away`` of the knife)."""
+        if away > 0:
+            return float(np.percentile(other[:, 0], 99.5)) + KNIFE_HALF[0] + 0.01
+        return float(np.percentile(other[:, 0], 0.5)) - KNIFE_HALF[0] - 0.01
+
+    def _fix_other(self, obs: SkillObservation, x: float, y: float) -> tuple[np.ndarray, bool]:
+        """Heuristic only: push the part that stayed to its goal centroid too (the knife may have dragged
+        it, or the re-entry pushed it). From its near side when it must move away from the knife, else
+        lift the knife over it, lower it on its far side and push back."""
+        plan, cfg = self.plan, self.cfg
+        piece = np.asarray(obs.piece, np.float64)
+        if self.phase == "fix":
+            self.side_x = x
+            self.phase = "fix_push"
+        other = piece[(piece[:, 0] - self.side_x) * plan.direction < 0]
+        if len(other) == 0:
+            self.phase = "done"
+            return np.zeros(2, np.float32), True
+        err = plan.other_target - other[:, 0].mean()
+        away = -plan.direction  # the other part lies on this side of the knife
+        low = self.bottom - cfg.tip_depth + KNIFE_TIP
+        high = self.top + cfg.clearance + KNIFE_TIP
+        if self.phase == "fix_push":
+            if abs(err) <= cfg.fix_tolerance:
+                self.phase = "done"
+                return np.zeros(2, np.float32), True
+            if np.sign(err) == away or not cfg.fix_far_side:
+                if np.sign(err) != away:
+                    self.phase = "done"
+                    return np.zeros(2, np.float32), True
+                speed = float(np.clip(abs(err) / max(cfg.slow_distance, 1e-6), 0.3, 1.0)) * cfg.separate_speed
+                self.fix_dir = away
+                self.phase = "fix_pushing"
+                return np.array([away * speed, 0.0], np.float32), False
+            far = self._far_x(other, away)
+            if not FAR_LIMITS[0] <= far <= FAR_LIMITS[1]:  # no room for the blade beyond the part
+                self.phase = "done"
+                return np.zeros(2, np.float32), True
+            self.phase, self.last_y = "fix_lift", None
+        if self.phase == "fix_pushing":
+            if err * self.fix_dir <= cfg.tolerance + cfg.slide_allowance:
+                self.phase = "done"
+                return np.zeros(2, np.float32), True
+            speed = float(np.clip(abs(err) / max(cfg.slow_distance, 1e-6), 0.3, 1.0)) * cfg.separate_speed
+            return np.array([self.fix_dir * speed, 0.0], np.float32), False
+        if self.phase == "fix_lift":
+            action = self._vertical(y, high, "fix_over")
+            if action is not None:
+                return action, False
+        if self.phase == "fix_over":
+            d = self._far_x(other, away) - x
+            if abs(d) > 1e-4:
+                return np.array([np.clip(d / STEP, -1, 1), 0.0], np.float32), False
+            self.phase, self.last_y = "fix_lower", None
+        if self.phase == "fix_lower":
+            action = self._vertical(y, low, "fix_back")
+            if action is not None:
+                return action, False
+            self.fix_dir = -away
+            self.phase = "fix_pushing"
+            return self._fix_other(obs, x, y)
+        return np.zeros(2, np.float32), True
+
+
 class CutSkill(Skill):
     """cut one dough piece in two with the knife (1 -> 2 entities, tool: knife)."""
 
     spec = SPEC
+    #: config fields only the heuristic controller reads (left out of task cache keys)
+    heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "fix_tolerance", "fix_far_side")
 
     def __init__(self, config: CutConfig | None = None) -> None:
         super().__init__(config if config is not None else CutConfig())

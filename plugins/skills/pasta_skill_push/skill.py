@@ -123,6 +123,8 @@ class PushSkill(Skill):
     """push one dough piece to a new place with the pusher (1 -> 1 entities, tool: pusher)."""
 
     spec = SPEC
+    #: config fields only the heuristic controller reads (left out of task cache keys)
+    heuristic_fields: tuple[str, ...] = ()
 
     def __init__(self, config: PushConfig | None = None) -> None:
         super().__init__(config if config is not None else PushConfig())

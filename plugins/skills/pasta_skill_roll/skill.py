@@ -125,6 +125,8 @@ class RollSkill(Skill):
     """roll one dough piece flat with the roller (1 -> 1 entities, tool: roller)."""
 
     spec = SPEC
+    #: config fields only the heuristic controller reads (left out of task cache keys)
+    heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation")
 
     def __init__(self, config: RollConfig | None = None) -> None:
         super().__init__(config if config is not None else RollConfig())
