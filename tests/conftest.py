@@ -3,8 +3,18 @@
 from __future__ import annotations
 
 import pytest
+import torch
 
 from pasta.plugins import get_plugins
+
+
+@pytest.fixture(autouse=True)
+def _one_torch_thread():
+    """Tests run many small tensor ops; one thread avoids oversubscribing shared 2-core machines."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
 
 
 @pytest.fixture

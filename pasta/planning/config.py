@@ -15,7 +15,9 @@ class LatentPlannerConfig(PluginConfig):
     sequences optimises ``S * num_samples`` samples in one batch.
     """
 
-    num_samples: int = 5000  # attention + sub-goal samples per skill sequence (paper 5000)
+    # Attention + sub-goal samples per skill sequence. The paper used 5000 on a GPU; on a 2-core CPU the
+    # score plateaus far earlier (docs/planning.md), so the default is sized for a CPU.
+    num_samples: int = 256
     iterations: int = 100  # optimiser iterations (paper 100-300); the last one only evaluates
     lr: float = 0.01  # Adam learning rate on the sub-goal latents (paper 0.01)
     # Adam's epsilon. torch's 1e-8 swamps the tiny gradients of floored feasibilities (the aux term is
@@ -38,6 +40,6 @@ class HalvingConfig(LatentPlannerConfig):
     # Successive halving: at these fractions of the iterations keep the better half of the samples, ranked
     # by the log of the unfloored score (sum_h log f_h - lambda * C), within each sequence ("sequence")
     # or over all sequences ("global"); each sequence always keeps its best `keep_per_sequence`.
-    successive_halving: bool = False
+    successive_halving: bool = True
     halving_points: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5])
     halving_scope: str = "sequence"  # "sequence": halve every sequence; "global": rank all samples together

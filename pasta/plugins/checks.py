@@ -134,6 +134,16 @@ def check_planner(planner: Planner, problem: PlanningProblem | None = None) -> P
     return plan
 
 
+#: Search budget for conformance runs: they check a plan's structure, determinism and errors, not its quality.
+SMALL_BUDGET: dict[str, Any] = {"num_samples": 32, "iterations": 10}
+
+
+def small_budget(registry: Any, name: str) -> dict[str, Any]:
+    """The :data:`SMALL_BUDGET` fields that ``name``'s config has (a planner may have none of them)."""
+    cfg = registry.default_config(name)
+    return {k: v for k, v in SMALL_BUDGET.items() if hasattr(cfg, k)}
+
+
 def configured(registry: Any, name: str, overrides: dict[str, Any] | None = None) -> Any:
     """Build ``name`` from ``registry`` with its default config updated by ``overrides``."""
     cfg = registry.default_config(name)

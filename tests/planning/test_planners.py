@@ -47,7 +47,7 @@ def test_impossible_cardinality_raises(name):
 def test_gradient_at_least_as_good_as_sampling_at_equal_samples():
     problem = analytic_problem()
     for n in (128,):
-        grad = make("exhaustive", num_samples=n, iterations=100).plan(problem)
+        grad = make("exhaustive", num_samples=n, iterations=100, successive_halving=False).plan(problem)
         samp = make("sampling", num_samples=n, iterations=100).plan(problem)
         assert grad.info["evaluations"] == samp.info["evaluations"]
         assert grad.score >= samp.score - 1e-3, (n, grad.score, samp.score)
@@ -55,7 +55,7 @@ def test_gradient_at_least_as_good_as_sampling_at_equal_samples():
 
 def test_successive_halving_spends_less_and_still_solves():
     problem = analytic_problem()
-    full = make("exhaustive", num_samples=256, iterations=100).plan(problem)
+    full = make("exhaustive", num_samples=256, iterations=100, successive_halving=False).plan(problem)
     half = make("exhaustive", num_samples=256, iterations=100, successive_halving=True).plan(problem)
     assert half.info["evaluations"] < 0.6 * full.info["evaluations"]
     assert half.skills == OPTIMAL_SKELETON and half.score > 0.5
@@ -77,7 +77,7 @@ def test_receding_horizon_slides_over_a_longer_skeleton():
     # 4 steps with a window of 3: the first window is a partial problem (scored against the goal)
     skeleton = (*OPTIMAL_SKELETON, "move")
     problem = dataclasses.replace(analytic_problem(horizon=4), skeleton=skeleton)
-    plan = make("receding_horizon", num_samples=128, iterations=100, window=3).plan(problem)
+    plan = make("receding_horizon", num_samples=128, iterations=100, window=3, successive_halving=False).plan(problem)
     check_plan(plan, problem)
     assert plan.skills == skeleton and len(plan.info["stages"]) == 4
     assert plan.final_cost < 0.01 and plan.score > 0.5

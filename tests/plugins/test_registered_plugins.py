@@ -3,7 +3,7 @@
 import pytest
 
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import check_planner, check_skill
+from pasta.plugins.checks import check_planner, check_skill, configured, small_budget
 
 PLUGINS = get_plugins()
 
@@ -15,4 +15,4 @@ def test_registered_skill_conforms(name):
 
 @pytest.mark.parametrize("name", PLUGINS.planners.names())
 def test_registered_planner_conforms(name):
-    check_planner(PLUGINS.planners.create(name))
+    check_planner(configured(PLUGINS.planners, name, small_budget(PLUGINS.planners, name)))

@@ -11,5 +11,6 @@ from pasta.planning.config import LatentPlannerConfig
 class SamplingConfig(LatentPlannerConfig):
     """the same search without gradients: cross-entropy method over sub-goal latents."""
 
+    num_samples: int = 1024  # CEM needs about 4x the samples of the gradient planner (docs/planning.md)
     elite_fraction: float = 0.1  # fraction of each (sequence, attention) population refitting its Gaussian
     min_std: float = 0.001  # floor of the refitted standard deviation
