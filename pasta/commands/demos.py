@@ -15,9 +15,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from pasta.demos.generate import DemoConfig, generate_demos, validate
-    from pasta.tasks.kv import parse_kv
+    from pasta.config.overrides import build_many
 
-    cfg = parse_kv(DemoConfig, args.overrides, "pasta demos")
+    cfg = build_many(args.overrides, [DemoConfig], command="pasta demos")[0]
     validate(cfg)  # every bad argument fails here, before a simulator starts
     summary = generate_demos(cfg)
     print(f"demos {cfg.skill}: {summary['generated']} generated, {summary['skipped']} already there, "

@@ -27,9 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from pasta.tasks import get_task, fixed_test_seeds
-    from pasta.tasks.kv import parse_kv
+    from pasta.config.overrides import build_many
 
-    opts = parse_kv(OracleArgs, args.overrides, "pasta oracle")
+    opts = build_many(args.overrides, [OracleArgs], command="pasta oracle")[0]
     if opts.num <= 0:
         raise ConfigError(f"num must be >= 1, got {opts.num}")
     task = get_task(opts.task)  # unknown task -> error listing the known ones, before any work

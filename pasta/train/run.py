@@ -6,13 +6,13 @@ directory under the models root ``out`` (see :mod:`pasta.nn`) and leaves ``metri
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from pasta.config.overrides import build_many
 from pasta.core.errors import ConfigError, did_you_mean
 from pasta.nn import COST_DIR, FEASIBILITY_DIR, FLAT_VAE_DIR, VAE_DIR
 from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
@@ -36,38 +36,9 @@ def parse_overrides(module: str, overrides: Mapping[str, str]) -> tuple[LoopConf
     """Split ``key=value`` strings into the loop config and the module's config, typed and validated."""
     if module not in MODULES:
         raise ConfigError(f"unknown module '{module}'{did_you_mean(module, MODULES)}; choose one of {', '.join(MODULES)}")
-    loop_fields = {f.name: f for f in dataclasses.fields(LoopConfig)}
-    mod_cls = _MODULE_CONFIG[module]
-    mod_fields = {f.name: f for f in dataclasses.fields(mod_cls)}
-    loop_kw: dict[str, Any] = dict(_LOOP_DEFAULTS[module])
-    mod_kw: dict[str, Any] = {}
-    for key, raw in overrides.items():
-        if key in loop_fields:
-            loop_kw[key] = _convert(key, raw, loop_fields[key].type)
-        elif key in mod_fields:
-            mod_kw[key] = _convert(key, raw, mod_fields[key].type)
-        else:
-            valid = sorted(loop_fields) + sorted(mod_fields)
-            raise ConfigError(f"unknown key '{key}' for `pasta train {module}`{did_you_mean(key, valid)}; valid keys: {', '.join(valid)}")
-    return LoopConfig(**loop_kw), mod_cls(**mod_kw)
-
-
-def _convert(key: str, raw: Any, kind: Any) -> Any:
-    kind = kind if isinstance(kind, str) else getattr(kind, "__name__", str(kind))
-    if not isinstance(raw, str):
-        return raw
-    try:
-        if kind == "bool":
-            if raw.lower() not in {"true", "false", "1", "0", "yes", "no"}:
-                raise ValueError(raw)
-            return raw.lower() in {"true", "1", "yes"}
-        if kind == "int":
-            return int(raw)
-        if kind == "float":
-            return float(raw)
-    except ValueError:
-        raise ConfigError(f"{key}={raw!r}: expected a {kind}") from None
-    return raw
+    values = {**_LOOP_DEFAULTS[module], **overrides}
+    loop, cfg = build_many(values, [LoopConfig, _MODULE_CONFIG[module]], command=f"pasta train {module}")
+    return loop, cfg
 
 
 def train(module: str, data: str | Path, out: str | Path, overrides: Mapping[str, str] | None = None) -> dict[str, Any]:

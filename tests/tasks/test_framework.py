@@ -9,7 +9,6 @@ import pytest
 from pasta.core import Controller, InputError, SkillObservation, ToolPose
 from pasta.core.errors import ConfigError, PluginNotFoundError
 from pasta.tasks import GroundTruthStep, TaskInstance, get_task, run_skill, split_pieces, task_names, fixed_test_seeds
-from pasta.tasks.kv import parse_kv
 from pasta.tasks.npz import read_npz, write_npz
 
 
@@ -152,22 +151,3 @@ def test_cache_key_depends_on_config():
     a, b = get_task("push"), get_task("push", idle_steps=11)
     assert a.key() == get_task("push").key() != b.key()
     assert a.cache_path(1000).name.startswith("seed01000-")
-
-
-def test_kv_parsing():
-    from dataclasses import dataclass
-
-    @dataclass
-    class A:
-        n: int = 1
-        x: float = 0.5
-        flag: bool = False
-        name: str = "a"
-
-    assert parse_kv(A, ["n=3", "x=0.25", "flag=true", "name=b"], "cmd") == A(3, 0.25, True, "b")
-    with pytest.raises(ConfigError, match="unknown argument 'nn'; did you mean 'n'"):
-        parse_kv(A, ["nn=3"], "cmd")
-    with pytest.raises(ConfigError, match="expected int"):
-        parse_kv(A, ["n=three"], "cmd")
-    with pytest.raises(ConfigError, match="key=value"):
-        parse_kv(A, ["n"], "cmd")
