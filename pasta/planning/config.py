@@ -16,8 +16,9 @@ class LatentPlannerConfig(PluginConfig):
     """
 
     # Attention + sub-goal samples per skill sequence. The paper used 5000 on a GPU; on a 2-core CPU the
-    # score plateaus far earlier (docs/planning.md), so the default is sized for a CPU.
-    num_samples: int = 256
+    # score plateaus far earlier (docs/planning.md: ~50 per sequence for crs with random networks; the
+    # analytic test problem needs ~128), so the default is sized for a CPU.
+    num_samples: int = 128
     iterations: int = 100  # optimiser iterations (paper 100-300); the last one only evaluates
     lr: float = 0.01  # Adam learning rate on the sub-goal latents (paper 0.01)
     # Adam's epsilon. torch's 1e-8 swamps the tiny gradients of floored feasibilities (the aux term is
