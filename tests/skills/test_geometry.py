@@ -9,9 +9,10 @@ import pytest
 from skill_helpers import box, drive
 
 from pasta.core import InputError, MissingComponentError
-from pasta_skill_cut.skill import KNIFE_TIP, plan_from_goal, split_by_x_gap
+from pasta_skill_cut.plugin import CutConfig
+from pasta_skill_cut.skill import KNIFE_TIP, dough_plane, knife_x_for_plane, plan_from_goal, split_by_x_gap
 from pasta_skill_push.skill import placement
-from pasta_skill_roll.skill import extent, main_yaw, thickness
+from pasta_skill_roll.skill import ROLL_STEP, extent, main_yaw, thickness
 
 FLOOR = 0.02
 DOUGH = box((0.75, FLOOR + 0.04, 0.5), (0.3, 0.08, 0.07), n=1500)
@@ -55,6 +56,25 @@ def test_cut_plan_from_goal_uses_the_point_fraction():
     assert plan.direction == -1 and plan.centroid_target == pytest.approx(left[:, 0].mean() - 0.1, abs=1e-4)
     mirrored = plan_from_goal(piece, np.concatenate([left, right + [0.1, 0, 0]]))
     assert mirrored.direction == 1
+    # with the cut model the knife goes where the dough parts at the plane
+    cfg = CutConfig()
+    modelled = plan_from_goal(piece, goal, cfg)
+    assert modelled.plane == pytest.approx(plan.cut_x, abs=1e-9)
+    assert dough_plane(modelled.cut_x, cfg.grid_dx, cfg.plane_offset, cfg.plane_slope) == pytest.approx(modelled.plane, abs=1e-9)
+
+
+def test_knife_position_inverts_the_measured_cut_model():
+    cfg = CutConfig()
+    model = (cfg.grid_dx, cfg.plane_offset, cfg.plane_slope)
+    for plane in np.linspace(0.55, 0.85, 61):
+        knife = knife_x_for_plane(plane, *model)
+        assert dough_plane(knife, *model) == pytest.approx(plane, abs=1e-9)
+        assert abs(knife - plane) < 2 * cfg.grid_dx
+        phase = knife / cfg.grid_dx % 1.0
+        assert 0.05 < phase < 0.95  # away from the cell boundary, where the plane jumps
+    # measured on recorded expert cuts: phase 0 parts ~1.1 cells right of the knife, phase ~1 ~1.1 left
+    assert dough_plane(0.7 // cfg.grid_dx * cfg.grid_dx, *model) > 0.7 // cfg.grid_dx * cfg.grid_dx + cfg.grid_dx
+    assert knife_x_for_plane(0.7, 0.0, 1.0, -2.0) == 0.7  # model off
 
 
 def test_cut_expert_aligns_descends_reenters_and_separates(skills):
@@ -167,6 +187,21 @@ def test_roll_controller_done_when_long_and_low(skills):
     start = (0.27, FLOOR + 0.009 + 0.0 + 0.03, 0.5)
     _, _, done = drive(ctrl, flat, flat, start, "roller", max_steps=200)
     assert done
+
+
+def test_roll_heuristic_turns_within_the_goal_extent(skills):
+    piece = box((0.3, FLOOR + 0.02, 0.5), (0.3, 0.04, 0.1), n=2000, seed=8)  # x 0.15 .. 0.45
+    goal = box((0.35, FLOOR + 0.01, 0.5), (0.3, 0.02, 0.1), n=2000, seed=9)  # x 0.2 .. 0.5
+    lowest = {}
+    for name, ctrl in (("heuristic", skills["roll"].controller()), ("expert", skills["roll"].expert({"height": 0.017, "length": 0.5}))):
+        actions, _, _ = drive(ctrl, piece, goal, (0.3, FLOOR + 0.08, 0.5), "roller", max_steps=80)
+        xs = 0.3 + np.cumsum([a[0] for a in actions]) * ROLL_STEP
+        lowest[name] = xs.min()
+    # the heuristic turns inside [goal lo, piece hi] (inset by half a radius); the expert follows the piece
+    assert lowest["heuristic"] > 0.2 + 0.01 and lowest["expert"] < 0.2
+    heur = skills["roll"].controller()
+    drive(heur, piece, goal, (0.3, FLOOR + 0.08, 0.5), "roller", max_steps=1)
+    assert heur.height == pytest.approx(thickness(goal) + heur.cfg.springback, abs=1e-9) and heur.cfg.springback < 0
 
 
 def test_skills_have_no_policy_yet(skills):

@@ -43,6 +43,31 @@ class CutPlan:
     knife_target: float | None = None
     centroid_target: float | None = None
     other_target: float | None = None  # heuristic: centroid x the other part should end at
+    plane: float | None = None  # heuristic: where the dough should part (cut_x is where the knife goes)
+
+
+def dough_plane(knife_x: float, dx: float, offset: float, slope: float) -> float:
+    """Where the dough parts when the knife cuts at ``knife_x`` (measured, see :class:`CutConfig`):
+    ``knife_x + dx * (offset + slope * phase)``, ``phase`` the knife's position within its grid cell."""
+    phase = knife_x / dx - np.floor(knife_x / dx)
+    return float(knife_x + dx * (offset + slope * phase))
+
+
+def knife_x_for_plane(plane: float, dx: float, offset: float, slope: float) -> float:
+    """The knife ``x`` whose cut parts the dough at ``plane`` (inverse of :func:`dough_plane`). Within a
+    cell the plane is linear in the knife position; where two cells can give the plane, the solution
+    farther from a cell boundary wins (the plane jumps there)."""
+    if dx <= 0 or slope == -1.0:
+        return float(plane)
+    best, best_margin = float(plane), -np.inf
+    n0 = int(np.floor(plane / dx))
+    for n in range(n0 - 3, n0 + 4):
+        x = (plane - offset * dx + slope * n * dx) / (1.0 + slope)
+        phase = x / dx - n
+        margin = min(phase, 1.0 - phase)
+        if margin >= 0 and margin > best_margin:
+            best, best_margin = float(x), margin
+    return best
 
 
 def split_by_x_gap(points: np.ndarray, min_fraction: float = 0.05) -> float:
@@ -59,8 +84,11 @@ def split_by_x_gap(points: np.ndarray, min_fraction: float = 0.05) -> float:
     return float(0.5 * (xs[i - 1] + xs[i]))
 
 
-def plan_from_goal(piece: np.ndarray, goal: np.ndarray) -> CutPlan:
-    """Infer the cut from the observed ``piece (P, 3)`` and the two goal pieces ``goal (G, 3)``."""
+def plan_from_goal(piece: np.ndarray, goal: np.ndarray, config: CutConfig | None = None) -> CutPlan:
+    """Infer the cut from the observed ``piece (P, 3)`` and the two goal pieces ``goal (G, 3)``: the dough
+    should part at the quantile of the piece's ``x`` given by the goal's left-piece point fraction; with a
+    ``config`` the knife goes where its measured cut model (:func:`knife_x_for_plane`) parts the dough
+    there, without one it goes to the plane itself."""
     piece = np.asarray(piece, np.float64)
     goal = np.asarray(goal, np.float64)
     split = split_by_x_gap(goal)
@@ -71,9 +99,12 @@ def plan_from_goal(piece: np.ndarray, goal: np.ndarray) -> CutPlan:
     d_left = g_left[:, 0].mean() - p_left[:, 0].mean() if len(p_left) else 0.0
     d_right = g_right[:, 0].mean() - p_right[:, 0].mean() if len(p_right) else 0.0
     left_c, right_c = float(g_left[:, 0].mean()), float(g_right[:, 0].mean())
+    knife_x = cut_x
+    if config is not None and config.grid_dx > 0:
+        knife_x = knife_x_for_plane(cut_x, config.grid_dx, config.plane_offset, config.plane_slope)
     if -d_left >= d_right:
-        return CutPlan(cut_x, -1, centroid_target=left_c, other_target=right_c)
-    return CutPlan(cut_x, +1, centroid_target=right_c, other_target=left_c)
+        return CutPlan(knife_x, -1, centroid_target=left_c, other_target=right_c, plane=cut_x)
+    return CutPlan(knife_x, +1, centroid_target=right_c, other_target=left_c, plane=cut_x)
 
 
 class CutController(Controller):
@@ -97,7 +128,7 @@ class CutController(Controller):
         else:
             if obs.goal is None or len(obs.goal) < 2:
                 raise InputError("cut controller: the goal must hold the two produced pieces")
-            self.plan = plan_from_goal(piece, obs.goal)
+            self.plan = plan_from_goal(piece, obs.goal, self.cfg)
         self.bottom = float(np.percentile(piece[:, 1], 1))
         self.top = float(np.percentile(piece[:, 1], 99))
         self.phase = "align"
@@ -230,7 +261,8 @@ class CutSkill(Skill):
 
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
-    heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "fix_tolerance", "fix_far_side")
+    heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "fix_tolerance", "fix_far_side",
+                                         "grid_dx", "plane_offset", "plane_slope")
 
     def __init__(self, config: CutConfig | None = None) -> None:
         super().__init__(config if config is not None else CutConfig())

@@ -10,8 +10,9 @@ length long and has seen ``min_passes`` passes at that height; or after ``max_pa
 
 The expert gets ``height`` (gap under the roller), ``length`` (target extent along the rolling direction)
 and ``yaw`` (rolling direction, 0 = along x) as parameters; the heuristic controller measures them on
-the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``), extent along its main
-horizontal axis, and that axis; it also waits until the piece is no thicker than the goal (plus
+the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``: rolled dough ends ~2.7 mm
+thicker than the gap), extent along its main horizontal axis, and that axis; it turns within the goal's
+extent along that axis (``confine_to_goal``: dough is not spread where the goal has none); it also waits until the piece is no thicker than the goal (plus
 ``thickness_tolerance``), since an expert that hit ``max_passes`` left a goal shorter than its target.
 """
 
@@ -78,6 +79,7 @@ class RollController(Controller):
         if self.params is not None:
             self.height, self.length, self.yaw = (float(self.params[k]) for k in ("height", "length", "yaw"))
             self.max_thickness = float("inf")
+            self.span = None
         else:
             if obs.goal is None or len(obs.goal) == 0:
                 raise InputError("roll controller: the goal piece is empty")
@@ -87,6 +89,8 @@ class RollController(Controller):
             lo, hi = extent(goal, axis(self.yaw))
             self.length = hi - lo
             self.max_thickness = thickness(goal) + cfg.thickness_tolerance
+            # roll only where the goal has dough: turning beyond the goal's ends spreads dough there
+            self.span = extent(goal, axis(self.yaw)) if cfg.confine_to_goal else None
         self.u = axis(self.yaw)
         self.floor = float(np.percentile(piece[:, 1], 1))
         lo, hi = extent(piece, self.u)
@@ -108,6 +112,8 @@ class RollController(Controller):
         if at_height and (long_enough and self.passes >= cfg.min_passes or self.passes >= cfg.max_passes):
             return np.zeros(4, np.float32), True
         inset = cfg.turn_inset * ROLLER_RADIUS
+        if self.span is not None:
+            lo, hi = max(lo, self.span[0]), min(hi, self.span[1])
         end_lo, end_hi = lo + inset, hi - inset
         if end_hi < end_lo:
             end_lo = end_hi = 0.5 * (end_lo + end_hi)
@@ -126,7 +132,7 @@ class RollSkill(Skill):
 
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
-    heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation")
+    heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation", "confine_to_goal")
 
     def __init__(self, config: RollConfig | None = None) -> None:
         super().__init__(config if config is not None else RollConfig())
