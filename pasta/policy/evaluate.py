@@ -81,17 +81,22 @@ def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10
     return out
 
 
-def _run(sim: Any, skill: Any, controller: Any, goal: np.ndarray | None, approach: Any = None) -> tuple[int, bool]:
+def _run(sim: Any, skill: Any, controller: Any, goal: np.ndarray | None, approach: Any = None,
+         max_steps: int | None = None) -> tuple[int, bool]:
     from pasta.tasks.executor import run_skill
 
     obs = sim.observe()
-    res = run_skill(sim, skill, controller, np.arange(len(obs.dough)), goal, approach=approach)
+    res = run_skill(sim, skill, controller, np.arange(len(obs.dough)), goal, approach=approach, max_steps=max_steps)
     return res.steps, res.done
 
 
 def evaluate_skill(sim: Any, skill: Any, configs: Sequence[SkillConfig], controllers: Sequence[str] = CONTROLLERS,
-                   *, emd_points: int = 500, verbose: bool = True) -> dict[str, list[dict[str, Any]]]:
-    """Score every controller on every config; returns ``{controller: [per-config records]}``."""
+                   *, emd_points: int = 500, learned_max_steps: int | None = None,
+                   verbose: bool = True) -> dict[str, list[dict[str, Any]]]:
+    """Score every controller on every config; returns ``{controller: [per-config records]}``.
+
+    ``learned_max_steps``: step limit of the learned policy (default: the skill's own, like the others).
+    """
     records: dict[str, list[dict[str, Any]]] = {c: [] for c in controllers}
     for cfg in configs:
         sim.set_state(cfg.state)
@@ -109,7 +114,7 @@ def evaluate_skill(sim: Any, skill: Any, configs: Sequence[SkillConfig], control
                     steps, done = _run(sim, skill, skill.expert(cfg.params), None, approach)
                 else:
                     ctl = skill.policy() if name == "learned" else skill.controller()
-                    steps, done = _run(sim, skill, ctl, goal)
+                    steps, done = _run(sim, skill, ctl, goal, max_steps=learned_max_steps if name == "learned" else None)
                 final = sim.observe().dough
                 ni = normalized_improvement(emd0, emd(final, goal, n=emd_points, seed=cfg.seed))
                 err = None
@@ -163,8 +168,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name in names:
         skill = get_plugins().skills.create(name)
         if "learned" in controllers:
-            load_policy(models / POLICY_DIR / name, skill)
-        results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed), controllers)
+            kw = {"done_threshold": float(args["done_threshold"])} if "done_threshold" in args else {}
+            load_policy(models / POLICY_DIR / name, skill, **kw)
+        max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
+        results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed), controllers,
+                                       learned_max_steps=max_steps)
     print(table(results))
     if "out" in args:
         Path(args["out"]).write_text(json.dumps(results, indent=1) + "\n")
