@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def split_overrides(overrides: list[str]) -> tuple[dict[str, str], dict[str, Any], list[str]]:
-    """``(own keys, execute.* fields, the rest for the run config)``; types of execute fields are checked."""
+    """``(own keys, execute.* fields as strings, the rest for the run config)``."""
     from pasta.execute import ExecuteConfig
 
     own: dict[str, str] = {}
@@ -53,7 +53,7 @@ def split_overrides(overrides: list[str]) -> tuple[dict[str, str], dict[str, Any
             name = key[len("execute."):]
             if name not in fields:
                 raise ConfigError(f"unknown key '{key}'{did_you_mean(name, fields)}; execute keys: {', '.join(fields)}")
-            execute[name] = _convert(key, value, fields[name].type)
+            execute[name] = value
         else:
             rest.append(item)
     if "controller" in own:
@@ -61,24 +61,9 @@ def split_overrides(overrides: list[str]) -> tuple[dict[str, str], dict[str, Any
     return own, execute, rest
 
 
-def _convert(key: str, raw: str, kind: Any) -> Any:
-    kind = kind if isinstance(kind, str) else getattr(kind, "__name__", str(kind))
-    try:
-        if kind == "bool":
-            if raw.lower() not in {"true", "false", "1", "0", "yes", "no"}:
-                raise ValueError(raw)
-            return raw.lower() in {"true", "1", "yes"}
-        if kind == "int":
-            return int(raw)
-        if kind == "float":
-            return float(raw)
-    except ValueError:
-        raise ConfigError(f"{key}={raw!r}: expected a {kind}") from None
-    return raw
-
-
 def run(args: argparse.Namespace) -> int:
     from pasta.config import load_config, section, to_yaml
+    from pasta.config.overrides import build
     from pasta.execute import ExecuteConfig
     from pasta.execute.pipeline import run_episode
     from pasta.plugins import get_plugins
@@ -98,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
                 rest.append(f"{key}={models / sub}")
     plugins = get_plugins()
     cfg = load_config(rest, plugins=plugins)
-    exe = ExecuteConfig(**execute_kw)
+    exe = build(ExecuteConfig, execute_kw, command="pasta run")
     name, seed = own["task"], int(cfg.seed)
     from pasta.tasks import get_task
 

@@ -183,10 +183,9 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     (:class:`PolicyTrainConfig`) and ``threads`` (torch CPU threads, 0 = leave as is). Writes
     ``MODELS/policy/<skill>/model.*`` and ``metrics.json``; returns the metrics.
     """
-    import dataclasses
     import json
 
-    from pasta.core.errors import did_you_mean
+    from pasta.config.overrides import build_many
     from pasta.policy import POLICY_DIR
     from pasta.train.loop import LoopConfig
 
@@ -194,22 +193,8 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     skill = pairs.pop("skill", "")
     if not skill:
         raise ConfigError("`pasta train policy` needs skill=NAME (a registered skill)")
-    threads = int(pairs.pop("threads", 0))
-    loop_fields = {f.name: f for f in dataclasses.fields(LoopConfig)}
-    pol_fields = {f.name: f for f in dataclasses.fields(PolicyTrainConfig)}
-    loop_kw, pol_kw = dict(LOOP_DEFAULTS), {}
-    for key, raw in pairs.items():
-        if key in loop_fields:
-            loop_kw[key] = _convert(key, raw, loop_fields[key].type)
-        elif key in pol_fields:
-            pol_kw[key] = _convert(key, raw, pol_fields[key].type)
-        else:
-            valid = sorted([*loop_fields, *pol_fields, "skill", "threads"])
-            raise ConfigError(f"unknown key '{key}' for `pasta train policy`{did_you_mean(key, valid)}; valid keys: {', '.join(valid)}")
-    if threads > 0:
-        torch.set_num_threads(threads)
+    loop, cfg = build_many({**LOOP_DEFAULTS, **pairs}, [LoopConfig, PolicyTrainConfig], command="pasta train policy")
     directory = Path(out) / POLICY_DIR / skill
-    cfg, loop = PolicyTrainConfig(**pol_kw), LoopConfig(**loop_kw)
     task = make_task(skill, data, cfg, seed=loop.seed, batch_size=loop.batch_size)
     from pasta.train.loop import fit
 
@@ -220,38 +205,3 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
                "best_val_loss": result.best_val_loss, **figures}
     (directory / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
     return metrics
-
-
-def _convert(key: str, raw: Any, kind: Any) -> Any:
-    kind = kind if isinstance(kind, str) else getattr(kind, "__name__", str(kind))
-    if not isinstance(raw, str):
-        return raw
-    try:
-        if kind == "bool":
-            if raw.lower() not in {"true", "false", "1", "0", "yes", "no"}:
-                raise ValueError(raw)
-            return raw.lower() in {"true", "1", "yes"}
-        if kind == "int":
-            return int(raw)
-        if kind == "float":
-            return float(raw)
-    except ValueError:
-        raise ConfigError(f"{key}={raw!r}: expected a {kind}") from None
-    return raw
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m pasta.policy.train skill=NAME data=DIR out=MODELS [key=value ...]`` (until ``pasta train policy`` is wired)."""
-    import json
-    import sys
-
-    pairs = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
-    data, out = pairs.pop("data", ""), pairs.pop("out", "")
-    if not data or not out:
-        raise ConfigError("needs data=DIR and out=MODELS_DIR")
-    print(json.dumps(train_command(data, out, pairs), indent=2))
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
