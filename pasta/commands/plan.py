@@ -28,7 +28,6 @@ COMMAND_KEYS = {
     "num_points": "1000",  # points per entity after decomposition and per decoded sub-goal entity
     "min_points": "50",  # DBSCAN clusters smaller than this are noise (the paper's planning value)
 }
-DEFAULT_GROUPS = {"encoder": "pc_vae", "cost_model": "set_cost"}
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -50,9 +49,6 @@ def split_arguments(items: list[str]) -> tuple[dict[str, str], list[str]]:
     for key in ("obs", "goal"):
         if not mine.get(key):
             raise ConfigError(f"pasta plan needs {key}=FILE (a .npy (P, 3) array or an ASCII .ply point cloud)")
-    for group, default in DEFAULT_GROUPS.items():
-        if not any(r.partition("=")[0].strip() == group for r in rest):
-            rest.insert(0, f"{group}={default}")
     return mine, rest
 
 
@@ -142,18 +138,12 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
 
         plugins = get_plugins()
     mine, overrides = split_arguments(list(items))
-    choices = {g: v for g, v in (o.partition("=")[::2] for o in overrides) if g in DEFAULT_GROUPS}
     cfg = load_config(overrides, plugins=plugins)
-    for key, name in choices.items():
-        plugins[key].info(name)  # unknown names fail here with the list of known ones
     num_points, min_points = _int(mine, "num_points"), _int(mine, "min_points")
     obs_pts, goal_pts = load_cloud(mine["obs"], "obs"), load_cloud(mine["goal"], "goal")
 
-    def conf(key):
-        return section(cfg, key) if cfg[key] is not None else None
-
-    encoder = plugins.encoders.create(choices["encoder"], conf("encoder"))
-    cost = plugins.cost_models.create(choices["cost_model"], conf("cost_model"))
+    encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
+    cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
     names = [n for n in mine["skills"].split(",") if n] or plugins.skills.names()
     skills = [plugins.skills.create(n) for n in names]
     needs = [s for s in skills if type(s).feasibility is _base_feasibility() and s.feasibility_model is None]

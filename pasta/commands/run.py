@@ -72,11 +72,7 @@ def run(args: argparse.Namespace) -> int:
     if not own.get("task"):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
     models = Path(own.get("models", "models"))
-    groups = {"encoder": "pc_vae", "cost_model": "set_cost"}  # the same defaults as `pasta plan`
     keys = {r.partition("=")[0].strip() for r in rest}
-    for group, default in groups.items():
-        if group not in keys:
-            rest.insert(0, f"{group}={default}")
     if "models" in own:  # trained weights under the given root unless set explicitly
         for key, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost")):
             if key not in keys:
@@ -90,13 +86,8 @@ def run(args: argparse.Namespace) -> int:
     task = get_task(name)
     exe = dataclasses.replace(exe, emd_points=task.config.emd_points, emd_seed=task.config.emd_seed)
     skills = [task.skill(n) for n in plugins.skills.names()]
-    choice = {g: v for g, v in (r.partition("=")[::2] for r in rest) if g in groups}
-
-    def conf(key: str) -> Any:
-        return section(cfg, key) if cfg[key] is not None else None
-
-    encoder = plugins.encoders.create(choice["encoder"], conf("encoder"))
-    cost = plugins.cost_models.create(choice["cost_model"], conf("cost_model"))
+    encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
+    cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
     from pasta.nn.loading import attach_feasibility
 
     attach_feasibility([s for s in skills if s.feasibility_model is None], models, latent_dim=encoder.latent_dim)

@@ -15,15 +15,18 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException, ValidationError
 
+from pasta.core import PluginConfig
 from pasta.core.errors import ConfigError, did_you_mean
+from pasta.plugins.registry import GROUP_KINDS
 
 #: config key -> plugin registry kind whose names it accepts
-GROUPS: dict[str, str] = {"planner": "planner", "encoder": "encoder", "cost_model": "cost_model"}
+GROUPS: dict[str, str] = {kind: kind for kind in GROUP_KINDS}
 
 
 @dataclass
 class RunConfig:
-    """Root of the run configuration. Group sections are typed ``Any`` and filled from the registries."""
+    """Root of the run configuration. Group sections are typed ``Any`` and filled from the registries;
+    each is a :class:`~pasta.core.PluginConfig` whose ``name`` is the chosen plugin."""
 
     seed: int = 0
     device: str = "cpu"
@@ -66,8 +69,9 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
 
     cfg = OmegaConf.structured(RunConfig)
     for group, choice in choices.items():
-        section = OmegaConf.structured(plugins[GROUPS[group]].default_config(choice))
-        cfg = OmegaConf.merge(cfg, {group: section})
+        # a plugin without settings still records its name, so the section always says what was chosen
+        chosen = plugins[GROUPS[group]].default_config(choice) or PluginConfig(name=choice)
+        cfg = OmegaConf.merge(cfg, {group: OmegaConf.structured(chosen)})
     try:
         cfg = OmegaConf.merge(cfg, defaults, OmegaConf.from_dotlist(dotlist))
     except (ConfigKeyError, ConfigAttributeError) as exc:

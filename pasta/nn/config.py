@@ -4,9 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pasta.core import PluginConfig
+
 
 @dataclass
-class PointVAEEncoderConfig:
+class PointVAEEncoderConfig(PluginConfig):
     """Config of the ``pc_vae`` encoder.
 
     Attributes:
@@ -28,7 +30,7 @@ class FlatEncoderConfig(PointVAEEncoderConfig):
 
 
 @dataclass
-class SetCostConfig:
+class SetCostConfig(PluginConfig):
     """Config of the ``set_cost`` cost model.
 
     Attributes:

@@ -32,6 +32,10 @@ KINDS: dict[str, tuple[str, type | None]] = {
 }
 
 
+#: kinds chosen by a config group switch (``planner=NAME``); their configs carry the chosen ``name``
+GROUP_KINDS = ("planner", "encoder", "cost_model")
+
+
 class PluginLoadWarning(UserWarning):
     """A plugin could not be imported or registered; the other plugins were loaded."""
 
@@ -222,8 +226,10 @@ def _registrar(kind: str, into: dict[str, PluginInfo], failures: list[PluginFail
             raise PluginValidationError(f"plugin '{plugin}': {kind} needs a name and a factory 'module:attribute', got {name!r}, {factory!r}")
         if config is not None and not (isinstance(config, type) and is_dataclass(config)):
             raise PluginValidationError(f"plugin '{plugin}': {kind} '{name}' config must be a dataclass type, got {config!r}")
-        if kind == "planner" and (config is None or not issubclass(config, PluginConfig)):
-            raise PluginValidationError(f"plugin '{plugin}': planner '{name}' config must subclass pasta.core.PluginConfig")
+        if kind == "planner" and config is None:
+            raise PluginValidationError(f"plugin '{plugin}': planner '{name}' needs a config (a pasta.core.PluginConfig subclass)")
+        if kind in GROUP_KINDS and config is not None and not issubclass(config, PluginConfig):
+            raise PluginValidationError(f"plugin '{plugin}': {kind} '{name}' config must subclass pasta.core.PluginConfig")
         if name in into:
             first = into[name]
             _fail(failures, plugin, dist, f"{kind} '{name}' is already registered by plugin '{first.plugin}' ({first.distribution}); kept that one")

@@ -4,6 +4,8 @@ import numpy as np
 import pytest
 
 from pasta.commands.run import split_overrides
+from pasta.config.overrides import build
+from pasta.execute import ExecuteConfig
 from pasta.core.errors import ConfigError
 from pasta.core.plan import Plan, PlanStep, as_latents
 
@@ -12,12 +14,14 @@ def test_split_overrides():
     own, exe, rest = split_overrides(["task=crs", "seed=3", "controller=heuristic", "execute.max_steps=20",
                                       "execute.closed_loop=true", "planner=sampling", "log=r.mcap"])
     assert own == {"task": "crs", "log": "r.mcap"}
-    assert exe == {"controller": "heuristic", "max_steps": 20, "closed_loop": True}
+    assert exe == {"controller": "heuristic", "max_steps": "20", "closed_loop": "true"}
     assert rest == ["seed=3", "planner=sampling"]
+    typed = build(ExecuteConfig, exe, command="pasta run")
+    assert (typed.controller, typed.max_steps, typed.closed_loop) == ("heuristic", 20, True)
     with pytest.raises(ConfigError, match="max_steps"):
         split_overrides(["execute.max_step=3"])
-    with pytest.raises(ConfigError):
-        split_overrides(["execute.max_steps=abc"])
+    with pytest.raises(ConfigError, match="max_steps.*could not be converted to Integer"):
+        build(ExecuteConfig, split_overrides(["execute.max_steps=abc"])[1])
 
 
 class StubPlanner:
