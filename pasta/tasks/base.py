@@ -272,6 +272,7 @@ class Task:
 
         sim = sim if sim is not None else self.make_sim()
         last: Exception | None = None
+        fallback: TaskInstance | None = None
         for attempt in range(self.config.max_retries + 1):
             gen = Generation(self, sim, self.rng(seed, attempt))
             try:
@@ -279,7 +280,15 @@ class Task:
             except SimulationDiverged as exc:
                 last = exc
                 continue
-            return gen.instance(seed, attempt)
+            inst = gen.instance(seed, attempt)
+            if not gen.problems:
+                return inst
+            # a goal the task's own checks reject (an expert step that missed its target or disturbed
+            # other pieces): draw new parameters; the last such goal is kept if every attempt fails
+            inst.meta["problems"] = list(gen.problems)
+            fallback = inst
+        if fallback is not None:
+            return fallback
         raise SimulationError(f"task '{self.name}' seed {seed}: every generation attempt diverged: {last}")
 
     def cache_path(self, seed: int) -> Path:
@@ -327,6 +336,8 @@ class Generation:
         self.meta: dict[str, Any] = {}
         self.init: Any = None
         self.init_pieces: list[np.ndarray] = []
+        #: reasons the task's checks reject this goal (:meth:`check_push`); a rejected goal is redrawn
+        self.problems: list[str] = []
 
     def start(self, boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]]) -> list[np.ndarray]:
         """Load a scene of boxes ``[(centre, size), ...]`` (particles split by volume), settle it,
@@ -378,6 +389,24 @@ class Generation:
         self.steps.append(GroundTruthStep(skill_name, params, idx.copy(), outputs, state, run.steps))
         self.pieces[piece:piece + 1] = outputs
         return list(range(piece, piece + len(outputs)))
+
+    def check_push(self, piece: int, params: dict[str, float], before: np.ndarray, *, tolerance: float,
+                   max_disturbance: float) -> None:
+        """After a push of piece number ``piece`` with target ``params``: record a problem when its
+        centroid (xz) ended more than ``tolerance`` from the target, or when another piece's centroid moved
+        more than ``max_disturbance`` from where it was in ``before (P, 3)`` (the observed dough before
+        the push)."""
+        after = self.observe()
+        c = after[self.pieces[piece]][:, [0, 2]].mean(0)
+        miss = float(np.hypot(c[0] - params["target_x"], c[1] - params["target_z"]))
+        if miss > tolerance:
+            self.problems.append(f"step {len(self.steps) - 1}: push ended {miss:.3f} from its target")
+        for j, other in enumerate(self.pieces):
+            if j == piece:
+                continue
+            moved = float(np.linalg.norm(after[other].mean(0) - before[other].mean(0)))
+            if moved > max_disturbance:
+                self.problems.append(f"step {len(self.steps) - 1}: push moved piece {j} by {moved:.3f}")
 
     def instance(self, seed: int, attempt: int) -> TaskInstance:
         self.meta.update({"attempt": attempt, "generator_version": GENERATOR_VERSION,

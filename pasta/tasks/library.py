@@ -171,7 +171,18 @@ class CRSTask(Task):
 
 @dataclass
 class CRSTwiceConfig(TaskConfig):
+    """``first_shift_min/max``: knife travel after the first cut. It must leave room for the pusher
+    behind the middle piece (paddle 0.03 thick + 8 mm gap + 6 mm clearance); with the cut's default
+    0.06-0.08 the paddle had to turn away and its 0.2 long face swept the first pushed piece along or
+    missed the middle piece (2 of the first 4 goals). ``push_tolerance`` / ``max_disturbance``: a goal
+    whose push ended farther than this from its target, or moved another piece more than this, is
+    redrawn (``Task.generate``)."""
+
     threshold: float = 0.83
+    first_shift_min: float = 0.10
+    first_shift_max: float = 0.12
+    push_tolerance: float = 0.03
+    max_disturbance: float = 0.01
 
 
 class CRSTwiceTask(Task):
@@ -183,15 +194,18 @@ class CRSTwiceTask(Task):
     summary = "cut two pieces off a long dough, move both, flatten both (3 pieces, 6 steps)"
 
     def build(self, gen: Generation) -> None:
+        cfg = self.config
         gen.start([crs_box(gen.rng, floor_of(gen), length=(0.34, 0.35), z_spread=0.15)])
-        gen.run("cut", 0, cut_params(gen, 0, (0.2, 0.24)))
+        gen.run("cut", 0, cut_params(gen, 0, (0.2, 0.24), (cfg.first_shift_min, cfg.first_shift_max)))
         gen.run("cut", 0, cut_params(gen, 0, (0.1, 0.11)))
         z0 = float(gen.observe()[gen.pieces[0]][:, 2].mean())
         sep = gen.rng.uniform(0.25, 0.3)
         zm = float(np.clip(z0 + gen.rng.uniform(-0.05, 0.05), 0.2 + sep / 2, 0.8 - sep / 2))
         x1, x2 = gen.rng.uniform(0.25, 0.29, size=2)
-        gen.run("push", 0, {"target_x": x1, "target_z": zm - sep / 2})
-        gen.run("push", 1, {"target_x": x2, "target_z": zm + sep / 2})
+        for piece, target in ((0, {"target_x": x1, "target_z": zm - sep / 2}), (1, {"target_x": x2, "target_z": zm + sep / 2})):
+            before = gen.observe()
+            gen.run("push", piece, target)
+            gen.check_push(piece, target, before, tolerance=cfg.push_tolerance, max_disturbance=cfg.max_disturbance)
         gen.run("roll", 0)
         gen.run("roll", 1)
 

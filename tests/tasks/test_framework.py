@@ -151,3 +151,48 @@ def test_cache_key_depends_on_config():
     a, b = get_task("push"), get_task("push", idle_steps=11)
     assert a.key() == get_task("push").key() != b.key()
     assert a.cache_path(1000).name.startswith("seed01000-")
+
+
+def test_check_push_records_missed_targets_and_disturbed_pieces():
+    from types import SimpleNamespace
+
+    from pasta.tasks.base import Generation
+
+    rng = np.random.default_rng(0)
+    before = np.concatenate([rng.random((50, 3)) * 0.05 + [0.3, 0.0, 0.3], rng.random((50, 3)) * 0.05 + [0.6, 0.0, 0.5]])
+    after = before.copy()
+    state = {"dough": after}
+    sim = SimpleNamespace(observe=lambda: SimpleNamespace(dough=state["dough"]))
+    gen = Generation(get_task("crs_twice"), sim, rng)
+    gen.pieces = [np.arange(50), np.arange(50, 100)]
+    c = after[:50].mean(0)
+    gen.check_push(0, {"target_x": c[0] + 0.01, "target_z": c[2]}, before, tolerance=0.03, max_disturbance=0.01)
+    assert gen.problems == []
+    gen.check_push(0, {"target_x": c[0] + 0.05, "target_z": c[2]}, before, tolerance=0.03, max_disturbance=0.01)
+    assert len(gen.problems) == 1 and "from its target" in gen.problems[0]
+    state["dough"] = after + np.r_[np.zeros((50, 3)), np.tile([0.02, 0.0, 0.0], (50, 1))]
+    gen.check_push(0, {"target_x": c[0], "target_z": c[2]}, before, tolerance=0.03, max_disturbance=0.01)
+    assert len(gen.problems) == 2 and "moved piece 1" in gen.problems[1]
+
+
+def test_generate_redraws_rejected_goals(monkeypatch):
+    from types import SimpleNamespace
+
+    from pasta.tasks.base import Generation
+
+    task = get_task("push")
+    calls = []
+
+    def build(gen):
+        calls.append(gen)
+        if len(calls) < 3:
+            gen.problems.append("missed")
+
+    monkeypatch.setattr(task, "build", build)
+    monkeypatch.setattr(Generation, "instance", lambda self, seed, attempt: SimpleNamespace(meta={}, attempt=attempt))
+    inst = task.generate(1000, sim=object())
+    assert inst.attempt == 2 and "problems" not in inst.meta and len(calls) == 3
+    calls.clear()
+    monkeypatch.setattr(task, "build", lambda gen: (calls.append(gen), gen.problems.append("missed")))
+    inst = task.generate(1000, sim=object())  # every attempt rejected: the last one is kept, with its problems
+    assert inst.attempt == task.config.max_retries and inst.meta["problems"] == ["missed"]
