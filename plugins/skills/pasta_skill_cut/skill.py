@@ -53,21 +53,30 @@ def dough_plane(knife_x: float, dx: float, offset: float, slope: float) -> float
     return float(knife_x + dx * (offset + slope * phase))
 
 
-def knife_x_for_plane(plane: float, dx: float, offset: float, slope: float) -> float:
-    """The knife ``x`` whose cut parts the dough at ``plane`` (inverse of :func:`dough_plane`). Within a
-    cell the plane is linear in the knife position; where two cells can give the plane, the solution
-    farther from a cell boundary wins (the plane jumps there)."""
+def knife_candidates(plane: float, dx: float, offset: float, slope: float, min_margin: float = 0.03) -> list[tuple[float, float]]:
+    """Every knife ``x`` whose cut parts the dough at ``plane`` (inverse of :func:`dough_plane`), as
+    ``(x, phase)``, keeping at least ``min_margin`` of a cell from the cell boundaries (the plane jumps
+    there). Within a cell the plane is linear in the knife position; neighbouring cells overlap, so a
+    plane can have two solutions."""
     if dx <= 0 or slope == -1.0:
-        return float(plane)
-    best, best_margin = float(plane), -np.inf
+        return []
+    out = []
     n0 = int(np.floor(plane / dx))
     for n in range(n0 - 3, n0 + 4):
         x = (plane - offset * dx + slope * n * dx) / (1.0 + slope)
         phase = x / dx - n
-        margin = min(phase, 1.0 - phase)
-        if margin >= 0 and margin > best_margin:
-            best, best_margin = float(x), margin
-    return best
+        if min_margin <= phase <= 1.0 - min_margin:
+            out.append((float(x), float(phase)))
+    return out
+
+
+def knife_x_for_plane(plane: float, dx: float, offset: float, slope: float) -> float:
+    """The knife ``x`` whose cut parts the dough at ``plane``: of :func:`knife_candidates` the one
+    farthest from a cell boundary (the plane itself when the model is off or has no solution)."""
+    cands = knife_candidates(plane, dx, offset, slope, 0.0)
+    if not cands:
+        return float(plane)
+    return max(cands, key=lambda c: min(c[1], 1.0 - c[1]))[0]
 
 
 def split_by_x_gap(points: np.ndarray, min_fraction: float = 0.05) -> float:
@@ -101,7 +110,14 @@ def plan_from_goal(piece: np.ndarray, goal: np.ndarray, config: CutConfig | None
     left_c, right_c = float(g_left[:, 0].mean()), float(g_right[:, 0].mean())
     knife_x = cut_x
     if config is not None and config.grid_dx > 0:
-        knife_x = knife_x_for_plane(cut_x, config.grid_dx, config.plane_offset, config.plane_slope)
+        model = (config.grid_dx, config.plane_offset, config.plane_slope)
+        knife_x = knife_x_for_plane(cut_x, *model)
+        cands = knife_candidates(cut_x, *model, min_margin=0.03)
+        if len(cands) > 1 and -d_left >= d_right and len(p_right):
+            # two knife positions part the dough there; they squeeze the part that stays differently
+            # (its far end moves right by stay_end_offset + stay_end_slope * phase): match the goal's
+            move = float(np.percentile(g_right[:, 0], 99.5) - np.percentile(p_right[:, 0], 99.5))
+            knife_x = min(cands, key=lambda c: abs(config.stay_end_offset + config.stay_end_slope * c[1] - move))[0]
     if -d_left >= d_right:
         return CutPlan(knife_x, -1, centroid_target=left_c, other_target=right_c, plane=cut_x)
     return CutPlan(knife_x, +1, centroid_target=right_c, other_target=left_c, plane=cut_x)
@@ -262,7 +278,7 @@ class CutSkill(Skill):
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "fix_tolerance", "fix_far_side",
-                                         "grid_dx", "plane_offset", "plane_slope")
+                                         "grid_dx", "plane_offset", "plane_slope", "stay_end_offset", "stay_end_slope")
 
     def __init__(self, config: CutConfig | None = None) -> None:
         super().__init__(config if config is not None else CutConfig())

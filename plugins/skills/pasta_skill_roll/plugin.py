@@ -30,7 +30,11 @@ class RollConfig:
             test sets): the dough ends 2.7 mm THICKER than the gap (median; thickness = 95th minus 1st
             percentile of y), hence -0.0027.
         confine_to_goal: heuristic: the turning points stay within the goal piece's extent along the
-            rolling direction (besides the piece's own ends), so dough is not spread beyond the goal.
+            rolling direction (besides the piece's own ends), so dough is not spread beyond the goal:
+            ``goal_inset`` radii inside the goal's ends (the roller pushes a bulge ahead of it; rolled
+            dough was measured to end ~1.3 radii beyond the turning point).
+        end_tolerance: heuristic (with ``confine_to_goal``): done only when the piece's ends are within
+            this of the goal's ends (or after ``max_passes``); rolling on spreads the short end.
         min_elongation: the heuristic rolls along the goal's main axis only if it is this much longer than
             wide; otherwise along x.
     """
@@ -50,6 +54,8 @@ class RollConfig:
     springback: float = -0.0027
     min_elongation: float = 1.3
     confine_to_goal: bool = True
+    end_tolerance: float = 0.01
+    goal_inset: float = 1.3
 
 
 @hookimpl

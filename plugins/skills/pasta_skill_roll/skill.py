@@ -12,7 +12,8 @@ The expert gets ``height`` (gap under the roller), ``length`` (target extent alo
 and ``yaw`` (rolling direction, 0 = along x) as parameters; the heuristic controller measures them on
 the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``: rolled dough ends ~2.7 mm
 thicker than the gap), extent along its main horizontal axis, and that axis; it turns within the goal's
-extent along that axis (``confine_to_goal``: dough is not spread where the goal has none); it also waits until the piece is no thicker than the goal (plus
+extent along that axis (``confine_to_goal``: dough is not spread where the goal has none) and is done only
+when the piece reaches both goal ends (within ``end_tolerance``); it also waits until the piece is no thicker than the goal (plus
 ``thickness_tolerance``), since an expert that hit ``max_passes`` left a goal shorter than its target.
 """
 
@@ -109,12 +110,15 @@ class RollController(Controller):
         y_target = self.floor + self.height + ROLLER_RADIUS
         at_height = abs(pos[1] - y_target) < 1e-3
         long_enough = (hi - lo) >= self.length - cfg.length_tolerance and thickness(obs.piece) <= self.max_thickness
+        if self.span is not None:  # heuristic: the piece also covers the goal's extent (both ends)
+            long_enough = long_enough and lo <= self.span[0] + cfg.end_tolerance and hi >= self.span[1] - cfg.end_tolerance
         if at_height and (long_enough and self.passes >= cfg.min_passes or self.passes >= cfg.max_passes):
             return np.zeros(4, np.float32), True
         inset = cfg.turn_inset * ROLLER_RADIUS
-        if self.span is not None:
-            lo, hi = max(lo, self.span[0]), min(hi, self.span[1])
         end_lo, end_hi = lo + inset, hi - inset
+        if self.span is not None:  # the dough ends up ~1.3 radii beyond where the roller turns
+            goal_inset = cfg.goal_inset * ROLLER_RADIUS
+            end_lo, end_hi = max(end_lo, self.span[0] + goal_inset), min(end_hi, self.span[1] - goal_inset)
         if end_hi < end_lo:
             end_lo = end_hi = 0.5 * (end_lo + end_hi)
         if self.direction > 0 and s >= end_hi - 1e-6 or self.direction < 0 and s <= end_lo + 1e-6:
@@ -132,7 +136,8 @@ class RollSkill(Skill):
 
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
-    heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation", "confine_to_goal")
+    heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation", "confine_to_goal",
+                                         "end_tolerance", "goal_inset")
 
     def __init__(self, config: RollConfig | None = None) -> None:
         super().__init__(config if config is not None else RollConfig())
