@@ -49,8 +49,13 @@ def other_dough(piece: np.ndarray, scene: np.ndarray | None, radius: float = 0.0
     return np.asarray(scene, np.float64)[d > radius]
 
 
-def placement(piece: np.ndarray, target_xz: np.ndarray, scene: np.ndarray | None, cfg: PushConfig) -> ToolPose:
-    """Approach pose of the pusher for pushing ``piece (P, 3)`` towards centroid ``target_xz (2,)``."""
+def placement(piece: np.ndarray, target_xz: np.ndarray, scene: np.ndarray | None, cfg: PushConfig,
+              max_slide: float = 0.0) -> ToolPose:
+    """Approach pose of the pusher for pushing ``piece (P, 3)`` towards centroid ``target_xz (2,)``.
+
+    Faces are tried from the ideal one outwards; with ``max_slide`` > 0 each face is also tried with the
+    paddle slid along itself by up to ``max_slide`` (as long as it still spans the piece), which often
+    clears a neighbouring piece without turning the face away from the push direction."""
     piece = np.asarray(piece, np.float64)
     c = piece[:, [0, 2]].mean(0)
     u = _unit(np.asarray(target_xz, np.float64) - c)
@@ -58,10 +63,21 @@ def placement(piece: np.ndarray, target_xz: np.ndarray, scene: np.ndarray | None
     y = float(np.percentile(piece[:, 1], 1)) - cfg.sink + PUSHER_HALF[1]
     lo, hi = tool_bounds("pusher", 1.0 / 64)
     best, best_clear = None, -np.inf
+    slides = [0.0]
+    if max_slide > 0:
+        slides += [sign * max_slide * k / 2 for k in (1, 2) for sign in (1, -1)]
+    candidates = []
     for angle in ANGLES:
         n = _rotate(u, angle)
+        t = np.array([-n[1], n[0]])  # along the paddle
+        side = np.percentile((piece[:, [0, 2]] - c) @ t, [1, 99])
+        for slide in slides:
+            if slide and not (slide - PUSHER_HALF[2] + 0.01 <= side[0] and side[1] <= slide + PUSHER_HALF[2] - 0.01):
+                continue  # the slid paddle would no longer span the piece
+            candidates.append((angle, n, slide))
+    for angle, n, slide in candidates:
         back = -float(np.percentile((piece[:, [0, 2]] - c) @ n, 0.5))
-        centre = c - n * (back + PUSHER_HALF[0] + cfg.gap)
+        centre = c - n * (back + PUSHER_HALF[0] + cfg.gap) + np.array([-n[1], n[0]]) * slide
         yaw = math.atan2(-n[1], n[0])
         if not (lo[0] <= centre[0] <= hi[0] and lo[2] <= centre[1] <= hi[2]):
             continue
@@ -124,7 +140,7 @@ class PushSkill(Skill):
 
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
-    heuristic_fields: tuple[str, ...] = ()
+    heuristic_fields: tuple[str, ...] = ("max_face_slide",)
 
     def __init__(self, config: PushConfig | None = None) -> None:
         super().__init__(config if config is not None else PushConfig())
@@ -134,9 +150,10 @@ class PushSkill(Skill):
         return int(self.config.max_steps)
 
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray, scene: np.ndarray | None = None) -> ToolPose:
-        """Pusher behind ``piece (P, 3)``, facing the goal centroid (``goal (G, 3)``), avoiding other dough in ``scene``."""
+        """Pusher behind ``piece (P, 3)``, facing the goal centroid (``goal (G, 3)``), avoiding other dough in
+        ``scene`` (the heuristic may also slide the paddle along its face, ``max_face_slide``)."""
         piece, goal = _points(piece, "piece"), _points(goal, "goal")
-        return placement(piece, goal[:, [0, 2]].mean(0), scene, self.config)
+        return placement(piece, goal[:, [0, 2]].mean(0), scene, self.config, self.config.max_face_slide)
 
     def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
         return placement(_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)

@@ -116,7 +116,7 @@ class RollController(Controller):
             return np.zeros(4, np.float32), True
         inset = cfg.turn_inset * ROLLER_RADIUS
         end_lo, end_hi = lo + inset, hi - inset
-        if self.span is not None:  # the dough ends up ~1.3 radii beyond where the roller turns
+        if self.span is not None:  # turn inside the goal's ends too
             goal_inset = cfg.goal_inset * ROLLER_RADIUS
             end_lo, end_hi = max(end_lo, self.span[0] + goal_inset), min(end_hi, self.span[1] - goal_inset)
         if end_hi < end_lo:
