@@ -26,6 +26,8 @@ class PushConfig:
             (while still spanning the piece) to clear neighbouring dough before the face is turned away
             from the push direction (a turned face let a piece slide off it: crs seed 1012, where a cut
             left 1 cm less room than in the recorded run). The expert's approach does not slide.
+        align_after: heuristic only: after the pusher has moved this far along the push line it turns
+            its face back square to the line (dyaw), in case the approach had to turn it; 0: never.
     """
 
     max_steps: int = 80
@@ -41,6 +43,7 @@ class PushConfig:
     target_z_max: float = 0.7
     min_distance: float = 0.08
     max_face_slide: float = 0.04
+    align_after: float = 0.02
 
 
 @hookimpl

@@ -21,9 +21,10 @@ import math
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
-from pasta.sim.tools import PARK_POSES, PUSHER_HALF, tool_bounds
+from pasta.sim.tools import PARK_POSES, PUSHER_HALF, TOOL_ACTION_SCALES, tool_bounds
 from pasta_skill_push.plugin import SPEC, PushConfig
 
+YAW_STEP = TOOL_ACTION_SCALES["pusher"][3]  # radians per env step at dyaw = 1
 #: face normals tried at the approach, as rotations (degrees) of the ideal push direction
 ANGLES = (0, 10, -10, 20, -20, 30, -30, 45, -45, 60, -60)
 
@@ -117,6 +118,7 @@ class PushController(Controller):
             self.target = np.asarray(obs.goal, np.float64)[:, [0, 2]].mean(0)
         c = np.asarray(obs.piece, np.float64)[:, [0, 2]].mean(0)
         self.direction = _unit(self.target - c)
+        self.start = np.asarray(obs.tool_pose, np.float64)[[0, 2]].copy()
 
     def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
         if self.target is None:
@@ -132,7 +134,17 @@ class PushController(Controller):
         # steer back onto the line, never sideways faster than forwards
         steer = lateral / max(float(np.linalg.norm(lateral)), 1e-9) * min(float(np.linalg.norm(lateral)) / 0.02, 1.0)
         move = _unit(self.direction + 0.5 * steer) * speed
-        return np.array([move[0], 0.0, move[1], 0.0], np.float32), False
+        dyaw = 0.0
+        if self.fixed_target is None and cfg.align_after > 0:
+            # heuristic: an approach that had to turn the face (neighbouring dough) lets the piece slide
+            # along it; once clear of the start, turn the face back square to the push line
+            pose = np.asarray(obs.tool_pose, np.float64)
+            if float((pose[[0, 2]] - self.start) @ self.direction) >= cfg.align_after:
+                yaw = 2.0 * math.atan2(pose[5], pose[3])  # pose[3:7]: quaternion (w, x, y, z) of a yaw about +y
+                want = math.atan2(-self.direction[1], self.direction[0])
+                err = math.remainder(want - yaw, 2.0 * math.pi)
+                dyaw = float(np.clip(err / YAW_STEP, -1.0, 1.0)) if abs(err) > 0.02 else 0.0
+        return np.array([move[0], 0.0, move[1], dyaw], np.float32), False
 
 
 class PushSkill(Skill):
@@ -140,7 +152,7 @@ class PushSkill(Skill):
 
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
-    heuristic_fields: tuple[str, ...] = ("max_face_slide",)
+    heuristic_fields: tuple[str, ...] = ("max_face_slide", "align_after")
 
     def __init__(self, config: PushConfig | None = None) -> None:
         super().__init__(config if config is not None else PushConfig())
