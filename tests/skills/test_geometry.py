@@ -132,6 +132,30 @@ def test_pusher_avoids_a_neighbouring_piece():
     assert gap.min() >= cfg.clearance
 
 
+def test_heuristic_pusher_slides_along_its_face_and_turns_it_back_square(skills):
+    from skill_helpers import observation
+
+    from pasta_skill_push.plugin import PushConfig
+
+    cfg = PushConfig()
+    # a neighbour right behind one end of the ideal paddle: sliding the paddle clears it, face unturned
+    neighbour = box((0.66, FLOOR + 0.04, 0.62), (0.04, 0.08, 0.04), n=300, seed=11)
+    scene = np.concatenate([PIECE, neighbour])
+    target = np.array([0.3, 0.5])
+    turned = placement(PIECE, target, scene, cfg)
+    slid = placement(PIECE, target, scene, cfg, max_slide=cfg.max_face_slide)
+    assert abs(math.remainder(turned.yaw - math.pi, 2 * math.pi)) > 0.1  # the expert's approach turns the face
+    assert abs(math.remainder(slid.yaw - math.pi, 2 * math.pi)) < 0.01 and slid.position[2] < 0.5  # slid, square
+    # the heuristic turns its face square to the push line once it has moved align_after along it
+    goal = PIECE + np.array([0.0, 0.0, 0.2], np.float32)  # push towards +z: face yaw -pi/2
+    for ctrl, expect in ((skills["push"].controller(), True), (skills["push"].expert({"target_x": float(goal[:, 0].mean()), "target_z": float(goal[:, 2].mean())}), False)):
+        start = np.array([PIECE[:, 0].mean(), 0.05, PIECE[:, 2].min() - 0.03])
+        ctrl.reset(observation(PIECE, goal, start))
+        a0, _ = ctrl.act(observation(PIECE, goal, start))
+        a1, _ = ctrl.act(observation(PIECE, goal, start + [0.0, 0.0, 0.03]))
+        assert a0[3] == 0.0 and (a1[3] < 0) == expect
+
+
 def test_push_controller_moves_along_the_line_and_stops(skills):
     ctrl = skills["push"].expert({"target_x": 0.3, "target_z": 0.6})
     obs_goal = None
