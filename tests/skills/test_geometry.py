@@ -225,7 +225,7 @@ def test_roll_heuristic_turns_within_the_goal_extent(skills):
     assert lowest["heuristic"] > 0.2 + 0.01 and lowest["expert"] < 0.2
     heur = skills["roll"].controller()
     drive(heur, piece, goal, (0.3, FLOOR + 0.08, 0.5), "roller", max_steps=1)
-    assert heur.height == pytest.approx(thickness(goal) + heur.cfg.springback, abs=1e-9) and heur.cfg.springback < 0
+    assert heur.height == pytest.approx(max(thickness(goal) + heur.cfg.springback, 0.005), abs=1e-9)
 
 
 def test_skills_have_no_policy_yet(skills):

@@ -10,8 +10,8 @@ length long and has seen ``min_passes`` passes at that height; or after ``max_pa
 
 The expert gets ``height`` (gap under the roller), ``length`` (target extent along the rolling direction)
 and ``yaw`` (rolling direction, 0 = along x) as parameters; the heuristic controller measures them on
-the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``: rolled dough ends ~2.7 mm
-thicker than the gap), extent along its main horizontal axis, and that axis; it turns within the goal's
+the goal piece: thickness (95th minus 1st percentile of y, plus ``springback``, see :class:`RollConfig`),
+extent along its main horizontal axis, and that axis; it turns within the goal's
 extent along that axis (``confine_to_goal``: dough is not spread where the goal has none) and is done only
 when the piece reaches both goal ends (within ``end_tolerance``); it also waits until the piece is no thicker than the goal (plus
 ``thickness_tolerance``), since an expert that hit ``max_passes`` left a goal shorter than its target.
