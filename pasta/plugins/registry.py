@@ -205,8 +205,8 @@ def discover(group: str = ENTRY_POINT_GROUP, extra: dict[str, Any] | None = None
     entries: dict[str, dict[str, PluginInfo]] = {kind: {} for kind in KINDS}
     for plugin_name, plugin in pm.list_name_plugin():
         dist, version = origin.get(plugin_name, ("(unknown)", ""))
+        others = [p for n, p in pm.list_name_plugin() if n != plugin_name]  # call this plugin's hooks alone
         for kind, (hook_name, _) in KINDS.items():
-            others = [p for n, p in pm.list_name_plugin() if n != plugin_name]
             caller = pm.subset_hook_caller(hook_name, remove_plugins=others)
             register = _registrar(kind, entries[kind], failures, plugin_name, dist, version)
             try:
