@@ -36,6 +36,13 @@ def check_points(points: Any, name: str = "points", *, min_points: int = 1) -> A
     return points
 
 
+def as_points(points: Any, name: str = "points") -> Any:
+    """``points`` as a validated float64 ``(P, 3)`` ``np.ndarray`` (see :func:`check_points`)."""
+    import numpy as np
+
+    return check_points(np.asarray(points, dtype=np.float64), name)
+
+
 def check_latents(latents: Any, name: str, *, dim: int | None = None, ndim: int = 2) -> Any:
     """Validate a latent tensor whose last axis is ``D`` (e.g. ``(K, D)``) and return it unchanged."""
     from pasta.core.errors import InputError

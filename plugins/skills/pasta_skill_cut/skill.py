@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core.shapes import as_points
 from pasta.sim.tools import KNIFE_HALF, PARK_POSES, TOOL_ACTION_SCALES
 from pasta_skill_cut.plugin import SPEC, CutConfig
 
@@ -289,7 +290,7 @@ class CutSkill(Skill):
 
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None = None, scene: np.ndarray | None = None) -> ToolPose:
         """Knife above the piece centroid, its tip ``clearance`` above the piece top."""
-        piece = _points(piece, "piece")
+        piece = as_points(piece, "piece")
         c = piece.mean(0)
         top = float(np.percentile(piece[:, 1], 99))
         return ToolPose((float(c[0]), top + KNIFE_TIP + self.config.clearance, float(c[2])), 0.0)
@@ -304,7 +305,7 @@ class CutSkill(Skill):
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``cut_x``: the piece's left end + U(offset_min, offset_max) (both parts keep >= offset_min);
         ``shift``: -U(shift_min, shift_max), the knife travel pushing the left part away."""
-        piece = _points(piece, "piece")
+        piece = as_points(piece, "piece")
         cfg = self.config
         left, right = np.percentile(piece[:, 0], [0.5, 99.5])
         hi = min(cfg.offset_max, (right - left) - cfg.offset_min)
@@ -319,10 +320,3 @@ class CutSkill(Skill):
 
     def controller(self) -> Controller:
         return CutController(self.config)
-
-
-def _points(points: np.ndarray, name: str) -> np.ndarray:
-    arr = np.asarray(points, np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
-        raise InputError(f"{name} must be a non-empty (P, 3) point cloud, got shape {arr.shape}")
-    return arr

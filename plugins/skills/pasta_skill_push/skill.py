@@ -21,6 +21,7 @@ import math
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core.shapes import as_points
 from pasta.sim.tools import PARK_POSES, PUSHER_HALF, TOOL_ACTION_SCALES, tool_bounds
 from pasta_skill_push.plugin import SPEC, PushConfig
 
@@ -164,18 +165,18 @@ class PushSkill(Skill):
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray, scene: np.ndarray | None = None) -> ToolPose:
         """Pusher behind ``piece (P, 3)``, facing the goal centroid (``goal (G, 3)``), avoiding other dough in
         ``scene`` (the heuristic may also slide the paddle along its face, ``max_face_slide``)."""
-        piece, goal = _points(piece, "piece"), _points(goal, "goal")
+        piece, goal = as_points(piece, "piece"), as_points(goal, "goal")
         return placement(piece, goal[:, [0, 2]].mean(0), scene, self.config, self.config.max_face_slide)
 
     def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
-        return placement(_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)
+        return placement(as_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)
 
     def park_pose(self) -> ToolPose:
         return ToolPose(tuple(float(v) for v in PARK_POSES["pusher"]), 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """A target centroid uniform in the config's box, at least ``min_distance`` from the piece."""
-        c = _points(piece, "piece")[:, [0, 2]].mean(0)
+        c = as_points(piece, "piece")[:, [0, 2]].mean(0)
         cfg = self.config
         for _ in range(1000):
             t = np.array([rng.uniform(cfg.target_x_min, cfg.target_x_max), rng.uniform(cfg.target_z_min, cfg.target_z_max)])
@@ -191,10 +192,3 @@ class PushSkill(Skill):
 
     def controller(self) -> Controller:
         return PushController(self.config)
-
-
-def _points(points: np.ndarray, name: str) -> np.ndarray:
-    arr = np.asarray(points, np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
-        raise InputError(f"{name} must be a non-empty (P, 3) point cloud, got shape {arr.shape}")
-    return arr

@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core.shapes import as_points
 from pasta.sim.tools import PARK_POSES, ROLLER_RADIUS, TOOL_ACTION_SCALES
 from pasta_skill_roll.plugin import SPEC, RollConfig
 
@@ -149,12 +150,12 @@ class RollSkill(Skill):
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None = None, scene: np.ndarray | None = None) -> ToolPose:
         """Roller above the piece centroid, its bottom ``clearance`` above the piece top, turned to the
         goal's main axis (along x when the goal is not elongated or not given)."""
-        piece = _points(piece, "piece")
-        yaw = 0.0 if goal is None else main_yaw(_points(goal, "goal"), self.config.min_elongation)
+        piece = as_points(piece, "piece")
+        yaw = 0.0 if goal is None else main_yaw(as_points(goal, "goal"), self.config.min_elongation)
         return self._pose(piece, yaw)
 
     def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
-        return self._pose(_points(piece, "piece"), float(params.get("yaw", 0.0)))
+        return self._pose(as_points(piece, "piece"), float(params.get("yaw", 0.0)))
 
     def _pose(self, piece: np.ndarray, yaw: float) -> ToolPose:
         c = piece.mean(0)
@@ -168,7 +169,7 @@ class RollSkill(Skill):
         """``height`` U(height_min, height_max); ``length`` the length the piece's volume (bounding box)
         fills at that height and ``width``, times U(length_min_factor, length_max_factor) (rolling along x
         spreads the dough more along x than across, hence factors above 1); ``yaw`` 0."""
-        piece = _points(piece, "piece")
+        piece = as_points(piece, "piece")
         cfg = self.config
         height = rng.uniform(cfg.height_min, cfg.height_max)
         size = np.percentile(piece, 99, axis=0) - np.percentile(piece, 1, axis=0)
@@ -184,10 +185,3 @@ class RollSkill(Skill):
 
     def controller(self) -> Controller:
         return RollController(self.config)
-
-
-def _points(points: np.ndarray, name: str) -> np.ndarray:
-    arr = np.asarray(points, np.float64)
-    if arr.ndim != 2 or arr.shape[1] != 3 or len(arr) == 0:
-        raise InputError(f"{name} must be a non-empty (P, 3) point cloud, got shape {arr.shape}")
-    return arr
