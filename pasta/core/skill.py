@@ -161,6 +161,20 @@ class Skill:
             raise self._missing("feasibility predictor", "train one with `pasta train feasibility skill=NAME`")
         return self.feasibility_model(u_in, u_out)
 
+    def log_feasibility(self, u_in: torch.Tensor, u_out: torch.Tensor) -> torch.Tensor:
+        """``(B,)`` log of :meth:`feasibility`, from the model's logits when it has ``logits(u_in, u_out)``.
+
+        Planners optimise this: ``log sigmoid(logit)`` keeps a useful gradient where the probability has
+        saturated at 0, which a product of probabilities does not.
+        """
+        import torch
+
+        logits = getattr(self.feasibility_model, "logits", None)
+        if callable(logits):
+            self._check_tuple(u_in, u_out)
+            return torch.nn.functional.logsigmoid(logits(u_in, u_out))
+        return self.feasibility(u_in, u_out).clamp(min=1e-30).log()
+
     # -- acting in the simulator (filled by skill plugins) ------------------------------------
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray) -> ToolPose:
         """Where to place the tool before executing on ``piece (P, 3)`` towards ``goal (G, 3)``."""

@@ -110,8 +110,16 @@ class ExecutionResult:
     diverged: str | None = None
 
 
-def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points: int) -> list[np.ndarray]:
-    """Decode ``(K, D)`` latents with ``encoder`` into ``K`` clouds ``(num_points, 3)`` float32."""
+def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points: int, *,
+                    by_volume: bool = False, voxel: float = 1.0 / 64) -> list[np.ndarray]:
+    """Decode ``(K, D)`` latents with ``encoder`` into ``K`` clouds ``(num_points, 3)`` float32.
+
+    With ``by_volume`` the clouds keep the density of an observation: the entity with the largest volume
+    keeps ``num_points`` points and every other one a share proportional to its volume (occupied
+    ``voxel``-sized cells of its decoded cloud). A decoder gives every entity the same point count, so
+    the concatenated goal would otherwise over-weight small pieces: the cut controller reads the volume
+    split from the goal's point fractions, and the policies were trained on observed goals.
+    """
     import torch
 
     if len(latents) == 0:
@@ -119,7 +127,12 @@ def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points
     with torch.no_grad():
         out = encoder.decode(torch.as_tensor(np.asarray(latents, np.float32)), num_points)
     out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
-    return [np.asarray(c, np.float32) for c in out]
+    clouds = [np.asarray(c, np.float32) for c in out]
+    if not by_volume or len(clouds) < 2:
+        return clouds
+    volumes = np.array([len(np.unique(np.floor(c / voxel).astype(np.int64), axis=0)) for c in clouds], np.float64)
+    keep = np.maximum(1, np.round(num_points * volumes / volumes.max())).astype(int)
+    return [c[:n] for c, n in zip(clouds, keep)]
 
 
 def attend(labels: np.ndarray, points: np.ndarray, step: PlanStep, planned_before: Sequence[Sequence[float]],
@@ -201,10 +214,13 @@ def execute_plan(
         skill = skills[step.skill]
         before = current.initial if h_plan == 0 else current.steps[h_plan - 1].state
         obs = sim.observe()
-        labels = decompose_labels(obs.dough, min_points=cfg.min_points)
+        if getattr(encoder, "scope", "entity") == "scene":  # Flat 3D: the skill acts on the whole scene
+            labels = np.zeros(len(obs.dough), np.int64)
+        else:
+            labels = decompose_labels(obs.dough, min_points=cfg.min_points)
         attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=h_plan == 0)
         idx = np.flatnonzero(np.isin(labels, attended))
-        subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points)
+        subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points, by_volume=True)
         goal_points = np.concatenate(subgoal, 0)
         skipped = False
         if cfg.skip_threshold > 0:

@@ -22,10 +22,18 @@ __all__ = ["Episode", "perceive", "plan_from_clouds", "run_episode"]
 
 def perceive(points: np.ndarray, encoder: Any, *, min_points: int = 50, num_points: int = 1000,
              seed: int = 0) -> tuple[list[np.ndarray], Any]:
-    """Entities of ``points (P, 3)`` (each ``(num_points, 3)``) and their latents ``(K, D)`` (torch)."""
+    """Entities of ``points (P, 3)`` (each ``(num_points, 3)``) and their latents ``(K, D)`` (torch).
+
+    An encoder of ``scope == "scene"`` (the Flat 3D baseline) gets the whole cloud as one entity.
+    """
     import torch
 
-    entities = decompose(points, min_points=min_points, num_points=num_points, seed=seed)
+    if getattr(encoder, "scope", "entity") == "scene":  # Flat 3D: the whole cloud is the one entity
+        pts = np.asarray(points, np.float32)
+        rng = np.random.default_rng(seed)
+        entities = [pts[rng.choice(len(pts), num_points, replace=len(pts) < num_points)]]
+    else:
+        entities = decompose(points, min_points=min_points, num_points=num_points, seed=seed)
     with torch.no_grad():
         latents = encoder.encode(torch.as_tensor(np.stack(entities)))
     return entities, latents.detach().cpu().float()

@@ -183,12 +183,17 @@ class FrozenMatching:
 
 @dataclass
 class Evaluation:
-    """Per group: ``feasibility (B, H)``, ``cost (B,)``, final states ``(B, K_H, D)``; the matching used."""
+    """Per group: ``log_feasibility (B, H)``, ``cost (B,)``, final states ``(B, K_H, D)``; the matching used."""
 
-    feasibility: list[torch.Tensor]
+    log_feasibility: list[torch.Tensor]
     cost: list[torch.Tensor]
     finals: list[torch.Tensor]
     matching: FrozenMatching
+
+    @property
+    def feasibility(self) -> list[torch.Tensor]:
+        """Per group, ``(B, H)`` feasibility in ``[0, 1]``."""
+        return [x.exp() for x in self.log_feasibility]
 
 
 def _take(state: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
@@ -225,7 +230,7 @@ def evaluate(
     *,
     frozen: FrozenMatching | None = None,
 ) -> Evaluation:
-    """Feasibility of every step and the final set cost of every sample, batched.
+    """Log-feasibility of every step and the final set cost of every sample, batched.
 
     Args:
         batch: the candidates (their attention; their own latents are ignored).
@@ -259,7 +264,7 @@ def evaluate(
             u_in.append(a)
             u_out.append(b)
             sizes.append(a.shape[0])
-        f = skills[batch.skill_names[k]].feasibility(torch.cat(u_in), torch.cat(u_out))
+        f = skills[batch.skill_names[k]].log_feasibility(torch.cat(u_in), torch.cat(u_out))
         for (g, h, idx), part in zip(calls[k], torch.split(f, sizes)):
             pieces.setdefault((g, h), []).append((idx, part))
     feas = []

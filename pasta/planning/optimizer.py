@@ -23,9 +23,10 @@ from pasta.core import PlanningProblem
 from pasta.core.errors import ConfigError
 from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, sample_candidates
 from pasta.planning.config import LatentPlannerConfig
-from pasta.planning.objective import plan_objective, plan_score
+from pasta.planning.objective import log_objective, plan_objective, plan_score
 
 METHODS = ("adam", "cem")
+OBJECTIVES = ("log", "product")
 _ADAM_BETAS = (0.9, 0.999)
 
 
@@ -77,6 +78,8 @@ def search(
         raise ConfigError(f"unknown optimisation method {method!r}; choose one of {METHODS}")
     if config.matching not in ("auto", "frozen", "recompute"):
         raise ConfigError(f"planner.matching must be 'auto', 'frozen' or 'recompute', got {config.matching!r}")
+    if config.objective not in OBJECTIVES:
+        raise ConfigError(f"planner.objective must be one of {OBJECTIVES}, got {config.objective!r}")
     if config.iterations < 0:
         raise ConfigError(f"planner.iterations must be >= 0, got {config.iterations}")
     t0 = time.perf_counter()
@@ -108,15 +111,18 @@ class _Optimiser:
             ev = evaluate(self.batch, lat, self.skills, self.cost, frozen=self.frozen)
             if self.freeze and self.frozen is None:
                 self.frozen = ev.matching
-            obj = [plan_objective(f, c, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor, aux_weight=cfg.aux_weight)
-                   for f, c in zip(ev.feasibility, ev.cost)]
+            if cfg.objective == "log":
+                obj = [log_objective(lf, c, cost_weight=cfg.cost_weight) for lf, c in zip(ev.log_feasibility, ev.cost)]
+            else:
+                obj = [plan_objective(lf.exp(), c, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor,
+                                      aux_weight=cfg.aux_weight) for lf, c in zip(ev.log_feasibility, ev.cost)]
         self.evaluations += self.batch.size
-        # Ranking for CEM elites: log of the unfloored score. The floor only exists to shape gradients;
-        # without it, samples far from feasible still say which of them is closer.
-        self._log_score = [f.detach().clamp(min=1e-30).log().sum(-1) - cfg.cost_weight * c.detach()
-                           for f, c in zip(ev.feasibility, ev.cost)]
-        scores = [plan_score(f.detach(), c.detach(), cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
-                  for f, c in zip(ev.feasibility, ev.cost)]
+        # Ranking (halving, CEM elites): the log of the unfloored score. The floor only exists to shape
+        # gradients; without it, samples far from feasible still say which of them is closer.
+        self._log_score = [log_objective(lf.detach(), c.detach(), cost_weight=cfg.cost_weight)
+                           for lf, c in zip(ev.log_feasibility, ev.cost)]
+        scores = [plan_score(lf.detach().exp(), c.detach(), cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
+                  for lf, c in zip(ev.log_feasibility, ev.cost)]
         return obj, scores
 
     def run(self) -> list[torch.Tensor]:

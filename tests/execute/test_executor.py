@@ -71,3 +71,25 @@ def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
     res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill}, encoder=box_encoder,
                        goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64))
     assert res.steps[0].env_steps == 3 and not res.steps[0].done and sim.step_count == 4
+
+
+class _TwoBoxDecoder:
+    """Decodes latent ``i`` into a box of x-length ``latents[i, 0]`` (uniform points, fixed seed)."""
+
+    def decode(self, latents, num_points):
+        rng = np.random.default_rng(0)
+        out = []
+        for u in np.asarray(latents):
+            out.append(rng.uniform(0, 1, (num_points, 3)) * np.array([u[0], 0.08, 0.08]))
+        return torch.as_tensor(np.stack(out), dtype=torch.float32)
+
+
+def test_decoded_goal_keeps_observation_density_by_volume():
+    from pasta.execute import decode_entities
+
+    latents = np.array([[0.3, 0.0], [0.1, 0.0]], np.float32)
+    same = decode_entities(_TwoBoxDecoder(), latents, 2000)
+    assert [len(c) for c in same] == [2000, 2000]
+    big, small = decode_entities(_TwoBoxDecoder(), latents, 2000, by_volume=True)
+    assert len(big) == 2000
+    assert 0.25 < len(small) / len(big) < 0.42  # a third of the volume
