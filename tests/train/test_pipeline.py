@@ -1,0 +1,122 @@
+"""``pasta pipeline``: every unit trains once, done units are skipped, changed ones rerun, typos fail early."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pasta.cli import main
+from pasta.core.errors import ConfigError
+from pasta.train.pipeline import run_pipeline
+
+TINY_POLICY = {"epochs": "1", "steps_per_epoch": "2", "val_batches": "1", "batch_size": "4", "dough_points": "32",
+               "tool_points": "8", "goal_points": "32"}
+UNITS = ("vae", "feasibility/cut", "cost", "policy/cut")
+
+
+def _args(data, out, tiny, *extra):
+    stage_args = [f"{stage}.{k}={v}" for stage, values in (*tiny.items(), ("policy", TINY_POLICY))
+                  for k, v in values.items()]
+    return [f"data={data}", f"out={out}", "stages=vae,feasibility,cost,policy", "skills=cut", "progress=false",
+            *stage_args, *extra]
+
+
+def _status(results):
+    return {r.name: r.status for r in results}
+
+
+def test_units_train_once_then_skip_and_rerun_only_what_changed(three_demos, tmp_path, tiny):
+    lines = []
+    results = run_pipeline(_args(three_demos, tmp_path, tiny), echo=lines.append)
+    assert _status(results) == dict.fromkeys(UNITS, "ran")
+    for unit in UNITS:
+        assert (tmp_path / unit / "metrics.json").is_file()
+    assert "[2/4] feasibility/cut ..." in lines
+    assert any(line.startswith("[2/4] feasibility/cut done in") and "heldout_auc_hard" in line for line in lines)
+    assert "4 ran, 0 skipped" in lines[-1]  # the summary table
+    record = json.loads((tmp_path / "pipeline.json").read_text())["units"]
+    assert record["feasibility/cut"]["settings"]["config"]["stride"] == 3  # the pipeline's per-skill default
+    assert record["feasibility/cut"]["settings"]["config"]["epochs"] == 2  # tiny's stage setting over it
+    assert record["cost"]["settings"]["vae"]["weights"] != "missing"
+
+    lines.clear()
+    results = run_pipeline(_args(three_demos, tmp_path, tiny), echo=lines.append)
+    assert _status(results) == dict.fromkeys(UNITS, "skipped")
+    assert any(line.startswith("[1/4] vae skipped") for line in lines)
+
+    # one setting changed: that unit only reruns (from scratch); threads never causes a rerun
+    results = run_pipeline(_args(three_demos, tmp_path, tiny, "cost.epochs=1", "vae.threads=2"), echo=lines.append)
+    assert _status(results) == {**dict.fromkeys(UNITS, "skipped"), "cost": "ran"}
+    assert json.loads((tmp_path / "cost" / "metrics.json").read_text())["best_epoch"] == 0
+    # a per-skill setting reaches its unit only
+    changed = ("cost.epochs=1", "policy.cut.val_batches=2")
+    results = run_pipeline(_args(three_demos, tmp_path, tiny, *changed), echo=lines.append)
+    assert _status(results) == {**dict.fromkeys(UNITS, "skipped"), "policy/cut": "ran"}
+
+    # interrupted (no metrics.json, same settings): resumes from last.*; only= and force= select and rerun
+    (tmp_path / "cost" / "metrics.json").unlink()
+    lines.clear()
+    results = run_pipeline(_args(three_demos, tmp_path, tiny, *changed, "only=cost"), echo=lines.append)
+    assert _status(results) == {"cost": "ran"}
+    assert any("resuming from last.* (1 of 1 epochs done)" in line for line in lines)
+    results = run_pipeline(_args(three_demos, tmp_path, tiny, *changed, "only=feasibility", "force=true"),
+                           echo=lines.append)
+    assert _status(results) == {"feasibility/cut": "ran"}
+
+
+def test_bad_arguments_fail_before_any_work(three_demos, tmp_path, tiny):
+    out = tmp_path / "models"
+    with pytest.raises(ConfigError, match="did you mean 'epochs'"):
+        run_pipeline(_args(three_demos, out, tiny, "feasibility.epoch=3"))
+    with pytest.raises(ConfigError, match="did you mean 'hidden'"):
+        run_pipeline(_args(three_demos, out, tiny, "cost.hiden=8"))
+    with pytest.raises(ConfigError, match="unknown stage 'vea'; did you mean 'vae'.*known stages: demos, vae"):
+        run_pipeline(_args(three_demos, out, tiny, "stages=vea"))
+    with pytest.raises(ConfigError, match="unknown stage 'polcy'"):
+        run_pipeline(_args(three_demos, out, tiny, "polcy.epochs=3"))
+    with pytest.raises(ConfigError, match="unknown skill 'cutt'.*known skills: cut, push, roll"):
+        run_pipeline(_args(three_demos, out, tiny, "skills=cut,cutt"))
+    with pytest.raises(ConfigError, match="did you mean 'num_demos'"):
+        run_pipeline(_args(three_demos, out, tiny, "num_demo=3"))
+    with pytest.raises(ConfigError, match="unknown unit 'feasibility/cutt'"):
+        run_pipeline(_args(three_demos, out, tiny, "only=feasibility/cutt"))
+    with pytest.raises(ConfigError, match="set by the pipeline; use skills="):
+        run_pipeline(_args(three_demos, out, tiny, "feasibility.skill=push"))
+    with pytest.raises(ConfigError, match="needs a trained VAE"):
+        run_pipeline(_args(three_demos, out, tiny, "stages=feasibility"))
+    assert not out.exists()
+
+
+def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
+    """The demos unit with the simulator replaced by synthetic demonstrations."""
+    import pasta.demos.generate as generate
+    from pasta.train.synthetic import synthetic_demo
+
+    def fake_generate(cfg, *, progress=True):
+        todo = generate.pending(cfg)
+        for i in todo:
+            arrays = synthetic_demo(cfg.skill, seed=i, steps=3, num_points=50)
+            np.savez(generate.demo_path(cfg.out, cfg.skill, i), **arrays)
+        generate.write_manifest(cfg)
+        return {"generated": len(todo), "skipped": cfg.num - len(todo), "wall_s": 0.0, "mean_steps": 3.0}
+
+    monkeypatch.setattr(generate, "generate_demos", fake_generate)
+    args = [f"data={tmp_path / 'demos'}", f"out={tmp_path / 'models'}", "stages=demos", "skills=cut", "workers=0"]
+    assert _status(run_pipeline([*args, "num_demos=2"], echo=lambda _: None)) == {"demos/cut": "ran"}
+    assert _status(run_pipeline([*args, "num_demos=2", "workers=2"], echo=lambda _: None)) == {"demos/cut": "skipped"}
+    results = run_pipeline([*args, "num_demos=3"], echo=lambda _: None)
+    assert _status(results) == {"demos/cut": "ran"} and results[0].metrics["generated"] == 1
+    assert len(list((tmp_path / "demos" / "cut").glob("demo_*.npz"))) == 3
+
+
+def test_command_line(three_demos, tmp_path, tiny, capsys):
+    with pytest.raises(SystemExit):
+        main(["pipeline", "--help"])
+    text = capsys.readouterr().out
+    for needle in ("examples:", "only=", "force=true", "<stage>.<key>=value", "feasibility.push.epochs", "make train"):
+        assert needle in text
+    assert main(["pipeline", *_args(three_demos, tmp_path, tiny, "vae.epoch=1")]) == 2
+    assert "did you mean 'epochs'" in capsys.readouterr().err
+    assert main(["pipeline", *_args(three_demos, tmp_path, tiny, "stages=vae")]) == 0
+    out = capsys.readouterr().out
+    assert "[1/1] vae done in" in out and "1 ran, 0 skipped" in out
