@@ -5,7 +5,7 @@ VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test test-all clean
+.PHONY: install demo train test test-all clean
 
 install: $(STAMP)
 
@@ -17,6 +17,12 @@ $(STAMP): pyproject.toml constraints.txt
 
 demo: $(STAMP)
 	$(PY) -m pasta demo
+
+# Retrain every module (demos -> vae -> feasibility -> cost -> policies); resumable. See `pasta pipeline --help`.
+TRAIN_ARGS ?=
+
+train: $(STAMP)
+	$(PY) -m pasta pipeline $(TRAIN_ARGS)
 
 test: $(STAMP)
 	$(PY) -m pytest -m "not slow" -q

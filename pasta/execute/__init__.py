@@ -3,6 +3,17 @@
 See :func:`pasta.execute.executor.execute_plan` and docs/policies.md.
 """
 
-from pasta.execute.executor import ExecuteConfig, ExecutionResult, StepInfo, attend, decode_entities, execute_plan
+from pasta.execute.executor import (
+    ExecuteConfig,
+    ExecutionResult,
+    StepInfo,
+    attend,
+    decode_entities,
+    equalise_density,
+    execute_plan,
+    match_goal_pieces,
+    persisting_outputs,
+)
 
-__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "execute_plan"]
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "equalise_density", "execute_plan",
+           "match_goal_pieces", "persisting_outputs"]

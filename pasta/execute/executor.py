@@ -33,10 +33,11 @@ import numpy as np
 from pasta.core.decompose import decompose_labels
 from pasta.core.errors import ConfigError, InputError
 from pasta.core.metrics import chamfer, emd, normalized_improvement
-from pasta.core.plan import Plan, PlanStep
+from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.skill import Controller, Skill
 
-__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "execute_plan"]
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "equalise_density", "execute_plan",
+           "match_goal_pieces", "persisting_outputs"]
 
 
 @dataclass
@@ -52,6 +53,10 @@ class ExecuteConfig:
         skip_threshold: skip a step whose decoded planned state is already within this Chamfer
             distance of the dough (0 disables).
         closed_loop: re-plan after each executed step from the new observation (needs a re-planner).
+        goal_pieces: a produced entity that no later step touches is part of the plan's final state, which
+            the planner matched to the goal: give the controller that observed goal piece (matched by
+            centroid) instead of the entity's decoding. Decodings blur thin pieces (a rolled sheet decodes
+            about twice as thick), and the goal is known exactly.
         emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
         log_every: log the dough cloud every this many env steps (actions are always logged).
     """
@@ -63,6 +68,7 @@ class ExecuteConfig:
     decode_points: int = 1000
     skip_threshold: float = 0.0
     closed_loop: bool = False
+    goal_pieces: bool = True
     emd_points: int = 500
     emd_seed: int = 0
     log_every: int = 1
@@ -110,15 +116,12 @@ class ExecutionResult:
     diverged: str | None = None
 
 
-def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points: int, *,
-                    by_volume: bool = False, voxel: float = 1.0 / 64) -> list[np.ndarray]:
+def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points: int) -> list[np.ndarray]:
     """Decode ``(K, D)`` latents with ``encoder`` into ``K`` clouds ``(num_points, 3)`` float32.
 
-    With ``by_volume`` the clouds keep the density of an observation: the entity with the largest volume
-    keeps ``num_points`` points and every other one a share proportional to its volume (occupied
-    ``voxel``-sized cells of its decoded cloud). A decoder gives every entity the same point count, so
-    the concatenated goal would otherwise over-weight small pieces: the cut controller reads the volume
-    split from the goal's point fractions, and the policies were trained on observed goals.
+    A decoder gives every entity the same point count; :func:`equalise_density` restores an
+    observation's density (the cut controller reads the volume split from the goal's point fractions,
+    and the policies were trained on observed goals).
     """
     import torch
 
@@ -127,12 +130,42 @@ def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points
     with torch.no_grad():
         out = encoder.decode(torch.as_tensor(np.asarray(latents, np.float32)), num_points)
     out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
-    clouds = [np.asarray(c, np.float32) for c in out]
-    if not by_volume or len(clouds) < 2:
-        return clouds
-    volumes = np.array([len(np.unique(np.floor(c / voxel).astype(np.int64), axis=0)) for c in clouds], np.float64)
-    keep = np.maximum(1, np.round(num_points * volumes / volumes.max())).astype(int)
-    return [c[:n] for c, n in zip(clouds, keep)]
+    return [np.asarray(c, np.float32) for c in out]
+
+
+def equalise_density(clouds: Sequence[np.ndarray], num_points: int, *, voxel: float = 1.0 / 64) -> list[np.ndarray]:
+    """Resample ``clouds`` (each ``(N_i, 3)``) to point counts proportional to their volumes.
+
+    The largest (by occupied ``voxel`` cells) gets ``num_points`` points; points are taken in order
+    (a decoder's Sobol template stays well spread) and repeated cyclically when a cloud has too few.
+    """
+    if len(clouds) < 2:
+        return [np.asarray(c, np.float32) for c in clouds]
+    volumes = np.array([len(np.unique(np.floor(np.asarray(c) / voxel).astype(np.int64), axis=0)) for c in clouds], np.float64)
+    counts = np.maximum(1, np.round(num_points * volumes / volumes.max())).astype(int)
+    return [np.asarray(c, np.float32)[np.arange(n) % len(c)] for c, n in zip(clouds, counts)]
+
+
+def persisting_outputs(plan: Plan, h: int) -> dict[int, int]:
+    """``{output j of step h: its index in the plan's final set}`` for the outputs no later step consumes."""
+    ids: list[tuple[int, int]] = [(-1, i) for i in range(len(plan.initial))]
+    for k, step in enumerate(plan.steps):
+        ids = [(k, j) for j in range(len(step.subgoal))] + [ids[i] for i in kept_indices(len(ids), step.inputs)]
+    return {j: pos for pos, (k, j) in enumerate(ids) if k == h}
+
+
+def match_goal_pieces(final: Sequence[Sequence[float]], goal: np.ndarray, labels: np.ndarray, z_dim: int) -> dict[int, np.ndarray]:
+    """``{final-set index: goal piece (N, 3)}``: planned final entities matched to observed goal pieces by centroid."""
+    from scipy.optimize import linear_sum_assignment
+
+    k = int(labels.max()) + 1 if len(labels) else 0
+    if k == 0 or len(final) == 0:
+        return {}
+    pieces = [goal[labels == e] for e in range(k)]
+    planned = np.asarray(final, np.float64)[:, z_dim : z_dim + 3]
+    dist = np.linalg.norm(planned[:, None, :] - np.stack([p.mean(0) for p in pieces])[None], axis=-1)
+    rows, cols = linear_sum_assignment(dist)
+    return {int(r): pieces[c] for r, c in zip(rows, cols)}
 
 
 def attend(labels: np.ndarray, points: np.ndarray, step: PlanStep, planned_before: Sequence[Sequence[float]],
@@ -206,6 +239,10 @@ def execute_plan(
         log.start(obs, goal, plan)
     horizon = plan.horizon
     plans, current, h_plan = [plan], plan, 0
+    scene_scope = getattr(encoder, "scope", "entity") == "scene"
+    goal_pieces = None  # entity label of every goal point
+    if cfg.goal_pieces:
+        goal_pieces = np.zeros(len(goal), np.int64) if scene_scope else decompose_labels(goal, min_points=cfg.min_points)
     infos: list[StepInfo] = []
     diverged = None
     for h in range(horizon):
@@ -214,13 +251,19 @@ def execute_plan(
         skill = skills[step.skill]
         before = current.initial if h_plan == 0 else current.steps[h_plan - 1].state
         obs = sim.observe()
-        if getattr(encoder, "scope", "entity") == "scene":  # Flat 3D: the skill acts on the whole scene
+        if scene_scope:  # Flat 3D: the skill acts on the whole scene
             labels = np.zeros(len(obs.dough), np.int64)
         else:
             labels = decompose_labels(obs.dough, min_points=cfg.min_points)
         attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=h_plan == 0)
         idx = np.flatnonzero(np.isin(labels, attended))
-        subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points, by_volume=True)
+        subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points)
+        if goal_pieces is not None:
+            matched = match_goal_pieces(current.steps[-1].state, goal, goal_pieces, encoder.z_dim)
+            for j, pos in persisting_outputs(current, h_plan).items():
+                if pos in matched:
+                    subgoal[j] = matched[pos]
+        subgoal = equalise_density(subgoal, cfg.decode_points)
         goal_points = np.concatenate(subgoal, 0)
         skipped = False
         if cfg.skip_threshold > 0:

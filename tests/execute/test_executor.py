@@ -85,11 +85,37 @@ class _TwoBoxDecoder:
 
 
 def test_decoded_goal_keeps_observation_density_by_volume():
-    from pasta.execute import decode_entities
+    from pasta.execute import decode_entities, equalise_density
 
     latents = np.array([[0.3, 0.0], [0.1, 0.0]], np.float32)
     same = decode_entities(_TwoBoxDecoder(), latents, 2000)
     assert [len(c) for c in same] == [2000, 2000]
-    big, small = decode_entities(_TwoBoxDecoder(), latents, 2000, by_volume=True)
+    big, small = equalise_density(same, 2000)
     assert len(big) == 2000
     assert 0.25 < len(small) / len(big) < 0.42  # a third of the volume
+    big, small = equalise_density([same[0][:500], same[1]], 2000)  # too few points: repeated
+    assert len(big) == 2000 and np.array_equal(big[500:1000], big[:500])
+
+
+def test_persisting_outputs_follow_the_set_bookkeeping():
+    from pasta.core.plan import Plan
+    from pasta.execute import persisting_outputs
+
+    lat = lambda k: [[float(i)] * 2 for i in range(k)]  # noqa: E731
+    # crs-like: cut 0 -> (a, b); push a (index 0); roll it (index 0). Final set: [rolled, b]
+    steps = [PlanStep("cut", (0,), lat(2), 1.0, lat(2)), PlanStep("push", (0,), lat(1), 1.0, lat(2)),
+             PlanStep("roll", (0,), lat(1), 1.0, lat(2))]
+    plan = Plan(steps=tuple(steps), initial=lat(1), goal=lat(2), final_cost=0.0, score=1.0, planner="t", seed=0)
+    assert persisting_outputs(plan, 0) == {1: 1}
+    assert persisting_outputs(plan, 1) == {}
+    assert persisting_outputs(plan, 2) == {0: 0}
+
+
+def test_goal_pieces_are_matched_by_centroid():
+    from pasta.execute import match_goal_pieces
+
+    goal = np.concatenate([np.full((10, 3), 0.2), np.full((5, 3), 0.8)]).astype(np.float32)
+    labels = np.array([0] * 10 + [1] * 5)
+    final = [[9.0, 0.79, 0.8, 0.81], [9.0, 0.21, 0.2, 0.2]]  # z_dim 1, then the centroid
+    got = match_goal_pieces(final, goal, labels, z_dim=1)
+    assert len(got[0]) == 5 and len(got[1]) == 10

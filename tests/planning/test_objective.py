@@ -35,7 +35,7 @@ def test_log_feasibility_keeps_gradient_where_probability_saturates():
     skill.attach_feasibility(_LogitModel(w=1.0))
     u_in = torch.zeros(1, 1, 4)
     u_out = torch.full((1, 1, 4), -50.0, requires_grad=True)  # logit -200: sigmoid underflows to 0
-    assert float(skill.feasibility(u_in, u_out)) == 0.0
+    assert float(skill.feasibility(u_in, u_out).detach()) == 0.0
     lf = skill.log_feasibility(u_in, u_out)
     assert torch.isfinite(lf).all() and float(lf.detach()) < -150
     (g,) = torch.autograd.grad(lf.sum(), u_out)
