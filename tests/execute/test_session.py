@@ -1,0 +1,76 @@
+"""`pasta eval` and the shared episode session: method resolution, shipped weights, resumable results."""
+
+import argparse
+import json
+
+import pytest
+
+from pasta.core.errors import ConfigError
+from pasta.execute.session import METHODS, EpisodeOutcome, build_session
+from pasta.weights import ROOT, models_root, shipped
+
+
+def test_shipped_weights_cover_every_module_the_default_pipeline_loads():
+    have = set(shipped())
+    assert {"vae", "cost", "feasibility/cut", "feasibility/push", "feasibility/roll"} <= have
+    for rel in have:
+        assert (ROOT / rel / "model.json").exists() and (ROOT / rel / "metrics.json").exists()
+        assert not (ROOT / rel / "last.safetensors").exists()  # resume checkpoints are not shipped
+    assert models_root(None) == ROOT and str(models_root("elsewhere")) == "elsewhere"
+
+
+def test_session_loads_the_shipped_weights_by_default():
+    session = build_session("crs", method="pasta")
+    assert session.models == ROOT
+    assert session.cfg.planner.name == "exhaustive" and session.exe.controller == "heuristic"
+    assert session.encoder.latent_dim > 3
+    assert all(s.feasibility_model is not None for s in session.skills)
+    assert build_session("crs_twice").cfg.planner.name == "receding_horizon"  # as in the paper
+    assert build_session("crs_twice").use_skeleton and not session.use_skeleton
+    assert build_session("crs", method="sampling").cfg.planner.name == "sampling"
+
+
+def test_session_rejects_unknown_method_task_and_skeleton():
+    with pytest.raises(ConfigError, match="did you mean 'pasta'.*known methods: " + ", ".join(METHODS)):
+        build_session("crs", method="pastaa")
+    with pytest.raises(Exception, match="crs"):
+        build_session("crss")
+    with pytest.raises(ConfigError, match="skeleton"):
+        build_session("crs", method="oracle", skeleton="maybe")
+
+
+class _FakeSession:
+    def __init__(self, task):
+        self.task, self.method, self.exe = task, "pasta", argparse.Namespace(controller="heuristic")
+        self.calls = []
+
+    def describe(self):
+        return {"task": self.task.name, "method": "pasta"}
+
+    def episode(self, seed, sim=None):
+        self.calls.append(seed)
+        return EpisodeOutcome(self.task.name, "pasta", seed, improvement=0.5 + (seed % 2) * 0.4, success=bool(seed % 2))
+
+
+def test_eval_writes_one_line_per_episode_and_resumes(tmp_path, monkeypatch):
+    from pasta.commands import eval as eval_cmd
+    from pasta.tasks import get_task
+
+    task = get_task("crs")
+    task.make_sim = lambda: None  # no simulator needed by the fake session
+    fake = _FakeSession(task)
+    monkeypatch.setattr("pasta.execute.session.build_session", lambda *a, **k: fake)
+    args = argparse.Namespace(overrides=["task=crs", "num=3", f"out={tmp_path}"])
+    assert eval_cmd.run(args) == 0
+    lines = (tmp_path / "crs_pasta.jsonl").read_text().splitlines()
+    assert [json.loads(x)["seed"] for x in lines] == [1000, 1001, 1002]
+    summary = json.loads((tmp_path / "crs_pasta.json").read_text())
+    assert summary["episodes"] == 3 and summary["success_rate"] == pytest.approx(1 / 3)
+    assert summary["improvement_mean"] == pytest.approx((0.5 + 0.9 + 0.5) / 3)
+    fake.calls.clear()  # a larger num runs only the new seeds
+    assert eval_cmd.run(argparse.Namespace(overrides=["task=crs", "num=4", f"out={tmp_path}"])) == 0
+    assert fake.calls == [1003]
+    with pytest.raises(ConfigError, match="fixed test seeds"):
+        eval_cmd.run(argparse.Namespace(overrides=["task=crs", "seed=3", f"out={tmp_path}"]))
+    with pytest.raises(ConfigError, match="did you mean 'num'"):
+        eval_cmd.run(argparse.Namespace(overrides=["task=crs", "nmu=3", f"out={tmp_path}"]))
