@@ -15,8 +15,12 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip install --quiet -c constraints.txt -e ".[dev]"
 	touch $(STAMP)
 
+# crs on the first fixed test config with the shipped weights: plan (exhaustive), execute, score;
+# writes out/demo/run.mcap (Foxglove, `pasta replay`) and out/demo/summary.png.
+DEMO_ARGS ?=
+
 demo: $(STAMP)
-	$(PY) -m pasta demo
+	$(PY) -m pasta run task=crs seed=1000 log=out/demo/run.mcap summary=out/demo/summary.png $(DEMO_ARGS)
 
 # Retrain every module (demos -> vae -> feasibility -> cost -> policies); resumable. See `pasta pipeline --help`.
 TRAIN_ARGS ?=

@@ -21,7 +21,7 @@ COMMAND_KEYS = {
     "obs": None,
     "goal": None,
     "out": "plan_out",
-    "models": "models",  # root of trained networks: feasibility per skill under models/feasibility/<skill>
+    "models": "",  # root of trained networks (`pasta train ... out=DIR`); empty: the shipped weights (pasta.weights)
     "horizon": "3",
     "skills": "",  # comma-separated skill names (default: every registered skill)
     "skeleton": "",  # optional fixed skill sequence, comma-separated
@@ -137,7 +137,14 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         from pasta.plugins import get_plugins
 
         plugins = get_plugins()
+    from pasta.weights import models_root
+
     mine, overrides = split_arguments(list(items))
+    root = models_root(mine["models"])
+    if mine["models"]:  # the encoder and cost weights under the given root unless set explicitly
+        keys = {o.partition("=")[0].strip() for o in overrides}
+        overrides += [f"{k}={root / sub}" for k, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost"))
+                      if k not in keys]
     cfg = load_config(overrides, plugins=plugins)
     num_points, min_points = _int(mine, "num_points"), _int(mine, "min_points")
     obs_pts, goal_pts = load_cloud(mine["obs"], "obs"), load_cloud(mine["goal"], "goal")
@@ -150,7 +157,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     if needs:
         from pasta.nn.loading import attach_feasibility
 
-        attach_feasibility(needs, mine["models"], latent_dim=encoder.latent_dim)
+        attach_feasibility(needs, root, latent_dim=encoder.latent_dim)
     obs_entities = decompose(obs_pts, min_points=min_points, num_points=num_points, seed=int(cfg.seed))
     goal_entities = decompose(goal_pts, min_points=min_points, num_points=num_points, seed=int(cfg.seed))
     with torch.no_grad():

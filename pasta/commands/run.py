@@ -24,11 +24,11 @@ EPILOG = """examples:
   pasta run task=crs seed=1000 controller=learned models=models   # your own `pasta train` root
   pasta run task=crs seed=1000 method=flat                    # the Flat 3D baseline
   pasta run task=crs seed=3 planner=sampling execute.closed_loop=true
-keys of this command: task method=pasta|sampling|flat|oracle models controller log summary horizon
+keys of this command: task method=pasta|sampling|flat|oracle models controller log summary horizon threads=1
 skeleton=auto|true|false execute.<field> (see docs/policies.md; the skeleton is given for crs_twice only,
 as in the paper); every other key=value goes to the run config (seed, planner, planner.*)."""
 
-_OWN = ("task", "models", "controller", "log", "horizon", "skeleton", "method", "summary")
+_OWN = ("task", "models", "controller", "log", "horizon", "skeleton", "method", "summary", "threads")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -71,6 +71,9 @@ def run(args: argparse.Namespace) -> int:
     own, execute_kw, rest = split_overrides(list(args.overrides))
     if not own.get("task"):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
+    import torch
+
+    torch.set_num_threads(int(own.get("threads", 1)))  # see `pasta eval`: 1 is fastest on a shared CPU
     session = build_session(own["task"], method=own.get("method", "pasta"), models=own.get("models"),
                             config_overrides=rest, execute=execute_kw, horizon=int(own.get("horizon") or 0) or None,
                             skeleton=own.get("skeleton", "auto"))

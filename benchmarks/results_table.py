@@ -1,0 +1,60 @@
+"""Print the results table of `pasta eval` summaries beside the paper's numbers (markdown).
+
+    python benchmarks/results_table.py [runs/eval]
+
+Reads every ``<task>_<method>[_h<H>].json`` that ``pasta eval`` wrote and prints one row per
+(task, method) with the normalised improvement (mean +/- std), the success rate, the number of test
+configs and the mean planning / execution seconds per episode, next to the paper's figure where it
+reported one (PASTA, CoRL 2022, Table 1 and the planning times of Section 5).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+#: (task, method) -> (normalised improvement, success rate) reported by the paper (5 configs each)
+PAPER = {
+    ("cut_rearrange", "pasta"): (0.837, 0.80),
+    ("crs", "pasta"): (0.896, 1.00),
+    ("crs_twice", "pasta"): (0.604, 0.40),
+    ("cut_rearrange", "flat"): (0.797, 0.60),
+    ("crs", "flat"): (-0.712, 0.00),
+}
+#: task -> planning seconds per episode in the paper (on a GPU)
+PAPER_PLAN_S = {"cut_rearrange": 35.0, "crs": 307.0, "crs_twice": 7810.0}
+TASKS = ("cut_rearrange", "crs", "crs_twice", "crs_distractors")
+METHODS = ("pasta", "sampling", "flat", "oracle")
+
+
+def rows(directory: Path) -> list[dict]:
+    out = []
+    for path in sorted(directory.glob("*.json")):
+        s = json.loads(path.read_text())
+        if "improvement_mean" in s:
+            s["name"] = path.stem
+            out.append(s)
+    order = {t: i for i, t in enumerate(TASKS)}
+    return sorted(out, key=lambda s: (order.get(s["task"], 99), METHODS.index(s["method"]) if s["method"] in METHODS else 99,
+                                      s.get("horizon", 0)))
+
+
+def main(argv: list[str]) -> int:
+    directory = Path(argv[0]) if argv else Path("runs/eval")
+    print("| task | method | horizon | configs | normalised improvement | success | paper | plan s | execute s |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    for s in rows(directory):
+        paper = PAPER.get((s["task"], s["method"]))
+        paper_txt = f"{paper[0]:.3f} / {100 * paper[1]:.0f}%" if paper else ""
+        name = s["method"] + (" (learned)" if s.get("controller") == "learned" else "")
+        print(f"| {s['task']} | {name} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
+              f"{s['improvement_std']:.3f} | {100 * s['success_rate']:.0f}% | {paper_txt} | {s['plan_s_mean']:.1f} | "
+              f"{s['execute_s_mean']:.1f} |")
+    print()
+    print("Paper planning time per episode (GPU): " + ", ".join(f"{t} {v:,.0f} s" for t, v in PAPER_PLAN_S.items()))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
