@@ -76,13 +76,15 @@ class SetCostModel(CostModel):
         return self.model.cost(a[:, :, None, :].expand(-1, k, g, -1), b[:, None, :, :].expand(-1, k, g, -1))
 
 
-def load_pair_cost(directory: str, *, device: str = "cpu", latent_dim: int | None = None) -> PairCost:
-    """Load a trained :class:`PairCost` from ``directory`` (checks module and, if given, ``latent_dim``)."""
+def load_pair_cost(directory: str, *, device: str = "cpu", latent_dim: int | None = None,
+                   scope: str | None = None) -> PairCost:
+    """Load a trained :class:`PairCost` from ``directory`` (checks module and, if given, ``latent_dim``
+    and ``scope``: ``"scene"`` accepts only Flat 3D networks, trained with ``flat=true``)."""
     from pasta.io.checkpoint import load_checkpoint
 
     if not directory:
         raise MissingComponentError("set_cost has no weights path: train one with `pasta train cost data=DIR out=models`")
-    expect = {"latent_dim": latent_dim} if latent_dim is not None else None
+    expect = {k: v for k, v in (("latent_dim", latent_dim), ("scope", scope)) if v is not None} or None
     ckpt = load_checkpoint(directory, module=MODULE, expect=expect,
                            hint="train one with `pasta train cost data=DIR out=models` (writes models/cost)")
     model = PairCost(ckpt.config["latent_dim"], ckpt.config["hidden"])

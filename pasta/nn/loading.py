@@ -24,11 +24,16 @@ def load_feasibility(
     n_out: int | None = None,
     latent_dim: int | None = None,
     device: str = "cpu",
+    scope: str | None = None,
 ) -> SetFeasibility:
-    """Load a trained :class:`SetFeasibility`, checking the skill name and sizes that are given."""
+    """Load a trained :class:`SetFeasibility`, checking the skill name, sizes and scope that are given.
+
+    ``scope="scene"`` accepts only Flat 3D networks (trained with ``flat=true``).
+    """
     from pasta.io.checkpoint import load_checkpoint
 
-    expect = {k: v for k, v in (("skill", skill), ("n_in", n_in), ("n_out", n_out), ("latent_dim", latent_dim)) if v is not None}
+    given = (("skill", skill), ("n_in", n_in), ("n_out", n_out), ("latent_dim", latent_dim), ("scope", scope))
+    expect = {k: v for k, v in given if v is not None}
     ckpt = load_checkpoint(directory, module=FEASIBILITY_MODULE, expect=expect, hint=feasibility_hint(skill or "NAME"))
     c = ckpt.config
     model = SetFeasibility(c["n_in"], c["n_out"], c["latent_dim"], c["hidden"])

@@ -3,12 +3,13 @@
 Pairs of entities are drawn from the demonstration steps: a share from the same demonstration (close
 shapes and positions, small distances) and the rest from anywhere (large distances). The label is the
 Chamfer distance (:func:`pasta.core.metrics.chamfer`) of the two real entity clouds; the network
-regresses ``log(chamfer + EPS)`` with a mean squared error.
+regresses ``log(chamfer + EPS)`` with a mean squared error. With ``flat=true`` (Flat 3D) the entities
+are whole scenes.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -30,6 +31,9 @@ class CostTrainConfig:
         label_points: points per entity used for the Chamfer label.
         num_points, stride, val_fraction: as for the VAE.
         vae: trained VAE directory (default ``OUT/vae``).
+        flat: Flat 3D baseline: pairs of whole scenes (latents of the ``flat`` encoder, ``OUT/vae``
+            must be a scene VAE): every ``stride``-th step of each demonstration and the dough after
+            the skill, see :func:`pasta.train.latents.encode_scenes`.
     """
 
     hidden: int = 256
@@ -40,6 +44,7 @@ class CostTrainConfig:
     stride: int = 1
     val_fraction: float = 0.2
     vae: str = ""
+    flat: bool = False
 
 
 def entity_pairs(demos: list[EncodedDemo], cfg: CostTrainConfig, *, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -79,7 +84,9 @@ class CostTask:
             self.model.net[-1].bias.fill_(float(torch.log(self.train_c + EPS).mean()))
 
     def config(self) -> dict[str, Any]:
-        return {**self.model.config(), "train": asdict(self.cfg)}
+        from pasta.train.feasibility import scope_config, train_dict
+
+        return {**self.model.config(), **scope_config(self.cfg), "train": train_dict(self.cfg)}
 
     def batches(self, batch_size: int, generator: torch.Generator):
         order = torch.randperm(len(self.train_a), generator=generator)

@@ -10,6 +10,7 @@ Dataset format (written by ``pasta demos`` and by :mod:`pasta.train.synthetic`):
         action       (T, A) float32
         skill        0-d str
         params       0-d str (JSON)
+        final_dough  (P, 3) float32   optional: the dough after the skill's idle steps (``pasta demos``)
 """
 
 from __future__ import annotations
@@ -40,6 +41,12 @@ class Demo:
     action: np.ndarray  # (T, A)
     params: dict = field(default_factory=dict)
     path: str = ""
+    final_dough: np.ndarray | None = None  # (P, 3) after the skill's idle steps, when the file has it
+
+    @property
+    def after(self) -> np.ndarray:
+        """``(P, 3)`` the dough after the skill: ``final_dough`` if stored, else the last step."""
+        return self.dough[-1] if self.final_dough is None else self.final_dough
 
     @property
     def key(self) -> str:
@@ -105,7 +112,17 @@ def load_demo(path: str | Path) -> Demo:
         action=arrays["action"].astype(np.float32, copy=False),
         params=params,
         path=str(path),
+        final_dough=_final_dough(arrays, path),
     )
+
+
+def _final_dough(arrays: dict, path: Path) -> np.ndarray | None:
+    if "final_dough" not in arrays:
+        return None
+    final = arrays["final_dough"].astype(np.float32, copy=False)
+    if final.ndim != 2 or final.shape[-1] != 3 or len(final) == 0 or not np.isfinite(final).all():
+        raise InputError(f"demonstration {path}: final_dough must be finite (P, 3), got shape {final.shape}")
+    return final
 
 
 def load_demos(data_dir: str | Path, skills: Iterable[str] | None = None) -> list[Demo]:

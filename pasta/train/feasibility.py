@@ -6,6 +6,10 @@
 - Hard negatives: ``hard_per_positive`` copies of each positive with one slot replaced by a prior sample.
 - Random negatives: every slot a prior sample (as many tuples as positives in the batch).
 - Loss: binary cross-entropy, weighted 0.5 (positives) / 0.25 (hard) / 0.25 (random).
+
+Flat 3D (``flat=true``): the same with ``N = M = 1`` and the whole scene as the entity; the positive
+of a demonstration is (its first step, the dough after the skill), see
+:func:`pasta.train.latents.encode_scenes`.
 """
 
 from __future__ import annotations
@@ -39,6 +43,9 @@ class FeasibilityTrainConfig:
         max_pairs_per_demo: positives drawn per demonstration at most (seeded).
         num_points, stride, val_fraction: as for the VAE.
         vae: trained VAE directory (default ``OUT/vae``).
+        flat: Flat 3D baseline: a ``1 -> 1`` network on whole-scene latents of the ``flat`` encoder
+            (``OUT/vae`` must be a scene VAE); each demonstration gives one positive, (its first
+            step, the dough after the skill), and ``stride`` / ``max_pairs_per_demo`` are unused.
     """
 
     skill: str = ""
@@ -53,6 +60,20 @@ class FeasibilityTrainConfig:
     stride: int = 1
     val_fraction: float = 0.2
     vae: str = ""
+    flat: bool = False
+
+
+def train_dict(cfg: Any) -> dict[str, Any]:
+    """``asdict(cfg)`` without ``flat`` when it is false, so checkpoints of entity runs keep their old config."""
+    d = asdict(cfg)
+    if not d.get("flat", True):
+        d.pop("flat")
+    return d
+
+
+def scope_config(cfg: Any) -> dict[str, str]:
+    """``{"scope": "scene"}`` for a Flat 3D run (checked by :func:`pasta.nn.flat.load_flat`), else ``{}``."""
+    return {"scope": "scene"} if getattr(cfg, "flat", False) else {}
 
 
 def positive_tuples(
@@ -112,7 +133,7 @@ class FeasibilityTask:
         return self.encoder.sample_prior(n, generator)
 
     def config(self) -> dict[str, Any]:
-        return {**self.model.config(), "skill": self.skill, "train": asdict(self.cfg)}
+        return {**self.model.config(), "skill": self.skill, **scope_config(self.cfg), "train": train_dict(self.cfg)}
 
     def batches(self, batch_size: int, generator: torch.Generator):
         order = torch.randperm(len(self.train_in), generator=generator)

@@ -1,4 +1,7 @@
-"""Entities of every demonstration step, with their latents: the input of feasibility and cost training."""
+"""Entities of every demonstration step, with their latents: the input of feasibility and cost training.
+
+:func:`encode_scenes` is the Flat 3D version: the whole scene as one entity.
+"""
 
 from __future__ import annotations
 
@@ -37,6 +40,29 @@ def encode_demos(demos: list[Demo], encoder: Any, *, num_points: int = 1000, str
         with torch.no_grad():
             latents = encoder.encode(torch.cat(clouds)).split(sizes)
         out.append(EncodedDemo(demo.key, demo.skill, list(latents), clouds))
+    return out
+
+
+def encode_scenes(demos: list[Demo], encoder: Any, *, num_points: int = 1000, stride: int | None = None,
+                  seed: int = 0) -> list[EncodedDemo]:
+    """The Flat 3D version of :func:`encode_demos`: every state is the whole dough as ONE entity.
+
+    The states of a demonstration are its first step and the dough after the skill
+    (:attr:`~pasta.train.data.Demo.after`) with ``stride=None``; with ``stride`` every ``stride``-th
+    step, then the dough after the skill. Each is resampled to ``num_points`` points (as
+    :func:`pasta.execute.pipeline.perceive` does for a scene encoder) and encoded as ``(1, D)``.
+    """
+    from pasta.core.decompose import resample
+
+    out = []
+    for demo in demos:
+        rng = np.random.default_rng([seed, demo.index])
+        steps = [0] if stride is None else list(range(0, len(demo.dough), max(1, stride)))
+        scenes = [demo.dough[t] for t in steps] + [demo.after]
+        clouds = torch.from_numpy(np.stack([resample(s, num_points, rng) for s in scenes]))
+        with torch.no_grad():
+            latents = encoder.encode(clouds)
+        out.append(EncodedDemo(demo.key, demo.skill, list(latents[:, None]), list(clouds[:, None])))
     return out
 
 

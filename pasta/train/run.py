@@ -2,6 +2,10 @@
 
 :func:`train` is what the command calls; tests call it directly. Each module writes into its own
 directory under the models root ``out`` (see :mod:`pasta.nn`) and leaves ``metrics.json`` there.
+
+Flat 3D baseline (``flat=true``, layout in :mod:`pasta.nn.flat`): a models root of its own, e.g.
+``out=models/flat``, with the same sub-directories (``vae`` via ``subdir=vae``, ``feasibility/<skill>``,
+``cost``); its feasibility and cost read the scene VAE ``OUT/vae``.
 """
 
 from __future__ import annotations
@@ -18,7 +22,7 @@ from pasta.nn import COST_DIR, FEASIBILITY_DIR, FLAT_VAE_DIR, VAE_DIR
 from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
 from pasta.train.data import load_demos, split_by_demo
 from pasta.train.feasibility import FeasibilityTask, FeasibilityTrainConfig, positive_tuples
-from pasta.train.latents import encode_demos
+from pasta.train.latents import encode_demos, encode_scenes
 from pasta.train.loop import LoopConfig, fit, torch_threads
 from pasta.train.vae import VAETask, VAETrainConfig, collect_clouds, vae_metrics
 
@@ -69,18 +73,32 @@ def _finish(directory: Path, module: str, result: Any, figures: dict[str, Any], 
 
 
 def _train_vae(data: Path, out: Path, loop: LoopConfig, cfg: VAETrainConfig) -> dict[str, Any]:
-    directory = out / (FLAT_VAE_DIR if cfg.flat else VAE_DIR)
+    directory = out / (cfg.subdir or (FLAT_VAE_DIR if cfg.flat else VAE_DIR))
     train, val = _split(data, cfg, loop)
     task = VAETask(collect_clouds(train, cfg, seed=loop.seed), collect_clouds(val, cfg, seed=loop.seed), cfg, seed=loop.seed)
     result = fit(task, loop, directory)
     return _finish(directory, "vae", result, vae_metrics(task, directory), data, len(train), len(val))
 
 
-def _load_encoder(out: Path, path: str):
+def _load_encoder(out: Path, path: str, flat: bool = False):
+    """The ``pc_vae`` encoder of ``path`` (default ``OUT/vae``), or with ``flat`` the ``flat`` one."""
+    if flat:
+        from pasta.nn.flat import load_flat_encoder
+
+        return load_flat_encoder(out, vae=path)
     from pasta.nn.config import PointVAEEncoderConfig
     from pasta.nn.encoders import PointVAEEncoder
 
     return PointVAEEncoder(PointVAEEncoderConfig(weights=path or str(out / VAE_DIR)))
+
+
+def _encode(demos: list, encoder: Any, cfg: Any, seed: int, *, pairs_only: bool = False) -> list:
+    """Entity sets of ``demos`` (:func:`encode_demos`), or whole scenes with ``cfg.flat`` (:func:`encode_scenes`);
+    ``pairs_only``: flat scenes are only (first step, after the skill)."""
+    if cfg.flat:
+        stride = None if pairs_only else cfg.stride
+        return encode_scenes(demos, encoder, num_points=cfg.num_points, stride=stride, seed=seed)
+    return encode_demos(demos, encoder, num_points=cfg.num_points, stride=cfg.stride, seed=seed)
 
 
 def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: FeasibilityTrainConfig) -> dict[str, Any]:
@@ -89,12 +107,12 @@ def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: Feasibility
     if not cfg.skill:
         raise ConfigError("`pasta train feasibility` needs skill=NAME (a registered skill)")
     spec = get_plugins().skills.info(cfg.skill).spec
-    encoder = _load_encoder(out, cfg.vae)
+    n_in, n_out = (1, 1) if cfg.flat else (spec.n_in, spec.n_out)  # Flat 3D: scene -> scene
+    encoder = _load_encoder(out, cfg.vae, cfg.flat)
     train, val = _split(data, cfg, loop, [cfg.skill])
-    enc = {name: encode_demos(d, encoder, num_points=cfg.num_points, stride=cfg.stride, seed=loop.seed)
-           for name, d in (("train", train), ("val", val))}
-    tuples = {name: positive_tuples(e, spec.n_in, spec.n_out, cfg, seed=loop.seed) for name, e in enc.items()}
-    task = FeasibilityTask(cfg.skill, spec.n_in, spec.n_out, tuples["train"], tuples["val"], encoder, cfg, seed=loop.seed)
+    enc = {name: _encode(d, encoder, cfg, loop.seed, pairs_only=True) for name, d in (("train", train), ("val", val))}
+    tuples = {name: positive_tuples(e, n_in, n_out, cfg, seed=loop.seed) for name, e in enc.items()}
+    task = FeasibilityTask(cfg.skill, n_in, n_out, tuples["train"], tuples["val"], encoder, cfg, seed=loop.seed)
     directory = out / FEASIBILITY_DIR / cfg.skill
     result = fit(task, loop, directory)
     figures = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
@@ -104,10 +122,10 @@ def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: Feasibility
 
 
 def _train_cost(data: Path, out: Path, loop: LoopConfig, cfg: CostTrainConfig) -> dict[str, Any]:
-    encoder = _load_encoder(out, cfg.vae)
+    encoder = _load_encoder(out, cfg.vae, cfg.flat)
     train, val = _split(data, cfg, loop)
-    pairs = {name: entity_pairs(encode_demos(d, encoder, num_points=cfg.num_points, stride=cfg.stride, seed=loop.seed), cfg,
-                                seed=loop.seed + i) for i, (name, d) in enumerate((("train", train), ("val", val)))}
+    pairs = {name: entity_pairs(_encode(d, encoder, cfg, loop.seed), cfg, seed=loop.seed + i)
+             for i, (name, d) in enumerate((("train", train), ("val", val)))}
     task = CostTask(pairs["train"], pairs["val"], encoder.latent_dim, cfg, seed=loop.seed)
     directory = out / COST_DIR
     result = fit(task, loop, directory)

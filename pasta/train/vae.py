@@ -35,6 +35,8 @@ class VAETrainConfig:
         num_points: points per entity after decomposition.
         stride: use every ``stride``-th demonstration step.
         flat: train on whole scenes (Flat 3D baseline) instead of entities.
+        subdir: sub-directory of ``OUT`` the weights go to; empty: ``vae``, or ``flat_vae`` with
+            ``flat=true``. A Flat 3D models root (:mod:`pasta.nn.flat`) uses ``flat=true subdir=vae``.
         val_fraction: share of demonstrations held out (per skill).
         max_val: validation examples evaluated each epoch (the final figures use all).
     """
@@ -52,10 +54,12 @@ class VAETrainConfig:
     flat: bool = False
     val_fraction: float = 0.2
     max_val: int = 256
+    subdir: str = ""
 
 
 def collect_clouds(demos: list[Demo], cfg: VAETrainConfig, *, seed: int = 0) -> np.ndarray:
-    """``(N, num_points, 3)`` training clouds: every entity of every step, or whole scenes if ``cfg.flat``."""
+    """``(N, num_points, 3)`` training clouds: every entity of every step, or whole scenes if ``cfg.flat``
+    (every ``stride``-th step and, when the demonstration stores it, its ``final_dough``)."""
     from pasta.core.decompose import resample
 
     clouds = []
@@ -64,6 +68,8 @@ def collect_clouds(demos: list[Demo], cfg: VAETrainConfig, *, seed: int = 0) -> 
             rng = np.random.default_rng([seed, demo.index])
             steps = range(0, len(demo.dough), max(1, cfg.stride))
             clouds += [resample(demo.dough[t], cfg.num_points, rng) for t in steps]
+            if demo.final_dough is not None:  # the settled scene after the skill (what a goal looks like)
+                clouds.append(resample(demo.final_dough, cfg.num_points, rng))
         else:
             ents = demo_entities(demo, num_points=cfg.num_points, stride=cfg.stride, seed=seed)
             clouds += [c for step in ents.clouds for c in step]
@@ -93,7 +99,7 @@ class VAETask:
 
     def config(self) -> dict[str, Any]:
         return {**self.model.config(), "scope": "scene" if self.cfg.flat else "entity",
-                "num_points": self.cfg.num_points, "train": asdict(self.cfg)}
+                "num_points": self.cfg.num_points, "train": _train_dict(self.cfg)}
 
     def batches(self, batch_size: int, generator: torch.Generator):
         order = torch.randperm(len(self.train), generator=generator)
@@ -128,6 +134,13 @@ class VAETask:
         if self.cfg.flat:
             return FlatEncoder(FlatEncoderConfig(weights="", encode_points=self.cfg.input_points), model=self.model)
         return PointVAEEncoder(PointVAEEncoderConfig(weights="", encode_points=self.cfg.input_points), model=self.model)
+
+
+def _train_dict(cfg: VAETrainConfig) -> dict[str, Any]:
+    """The settings saved with the weights; ``subdir`` says where, not how, so it is left out."""
+    d = asdict(cfg)
+    d.pop("subdir")
+    return d
 
 
 def chamfer_loss(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
