@@ -53,6 +53,9 @@ class DemoConfig:
         idle_steps: zero-action steps after it (the final dough is taken after them).
         n_particles: simulated particles.
         obs_points: observed points ``P``.
+        scene: ``"default"`` (the scenes of :func:`demo_scene`) or ``"wide"`` (push only: pieces up to
+            0.25 long anywhere on the right of the workspace, pushed to targets with x up to 0.7, as in
+            cut_rearrange; added to a dataset with a larger ``num``, e.g. ``num=350 scene=wide``).
     """
 
     skill: str = "cut"
@@ -64,12 +67,23 @@ class DemoConfig:
     idle_steps: int = 10
     n_particles: int = 5000
     obs_points: int = 1000
+    scene: str = "default"
 
 
-def demo_scene(skill: str, rng: np.random.Generator, floor: float) -> list[tuple]:
+#: push targets of ``scene="wide"`` demonstrations: x up to 0.7 (the default box ends at 0.32)
+WIDE_PUSH_TARGET_X_MAX = 0.7
+
+
+def demo_scene(skill: str, rng: np.random.Generator, floor: float, scene: str = "default") -> list[tuple]:
     """Boxes ``[(centre, size)]`` of the single-piece scene a demonstration of ``skill`` starts from."""
-    from pasta.tasks.library import SPREAD_X, crs_box, small_box
+    from pasta.tasks.library import HEIGHT, SPREAD_X, crs_box, small_box
 
+    if scene == "wide":
+        if skill != "push":
+            raise InputError(f"scene 'wide' exists for push demonstrations only, not '{skill}'")
+        size = (rng.uniform(0.1, 0.25), HEIGHT, rng.uniform(0.06, 0.1))
+        x = rng.uniform(0.4, 0.93 - size[0] / 2)
+        return [((x, floor + HEIGHT / 2, rng.uniform(0.3, 0.7)), size)]
     if skill == "cut":
         return [crs_box(rng, floor)]
     if skill == "push":
@@ -101,6 +115,8 @@ def validate(cfg: DemoConfig) -> Path:
     for name in ("settle_steps", "idle_steps"):
         if getattr(cfg, name) < 0:
             raise ConfigError(f"{name} must be >= 0, got {getattr(cfg, name)}")
+    if cfg.scene not in ("default", "wide") or (cfg.scene == "wide" and cfg.skill != "push"):
+        raise ConfigError(f"scene must be 'default' or, for push, 'wide'; got scene={cfg.scene!r} for skill {cfg.skill}")
     if cfg.n_particles < 1 or cfg.obs_points < 1:
         raise ConfigError("n_particles and obs_points must be >= 1")
     folder = Path(cfg.out) / cfg.skill
@@ -167,7 +183,13 @@ class DemoWriter:
         from pasta.sim import SimConfig, Simulator
 
         self.cfg = cfg
-        self.skill = get_plugins().skills.create(cfg.skill)
+        plugins = get_plugins()
+        skill_config = plugins.skills.default_config(cfg.skill)
+        if cfg.scene == "wide":
+            from dataclasses import replace
+
+            skill_config = replace(skill_config, target_x_max=WIDE_PUSH_TARGET_X_MAX)
+        self.skill = plugins.skills.create(cfg.skill, skill_config)
         self.sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
                                        max_particles=max(10000, cfg.n_particles)))
 
@@ -178,7 +200,7 @@ class DemoWriter:
 
         cfg, sim, skill = self.cfg, self.sim, self.skill
         rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])
-        (centre, size), = demo_scene(cfg.skill, rng, sim.floor_y)
+        (centre, size), = demo_scene(cfg.skill, rng, sim.floor_y, cfg.scene)
         sim.reset(box_particles(centre, size, cfg.n_particles, rng), seed=int(rng.integers(2**31)))
         for _ in range(cfg.settle_steps):
             sim.step()
