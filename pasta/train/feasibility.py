@@ -37,6 +37,11 @@ class FeasibilityTrainConfig:
         skill: the skill whose demonstrations are the positives (required).
         hidden: network width.
         hard_per_positive: hard negatives per positive.
+        shift_per_positive: near-miss negatives per positive: the tuple with its produced entities
+            moved together by ``shift_min``..``shift_max`` in the table plane (x, z). Right for skills
+            that cannot carry dough far (roll, cut): without them the network accepts an output a few
+            centimetres from where the skill leaves it, and plans inherit that slack. 0 (default) for push.
+        shift_min, shift_max: the displacement range of those negatives.
         z_noise, t_noise: std of the Gaussian noise on ``z`` and ``t`` of positives (training only).
         unchanged_threshold: Chamfer below which an entity counts as unchanged.
         match_points: points per entity used for that Chamfer.
@@ -51,6 +56,9 @@ class FeasibilityTrainConfig:
     skill: str = ""
     hidden: int = 256
     hard_per_positive: int = 10
+    shift_per_positive: int = 0
+    shift_min: float = 0.03
+    shift_max: float = 0.1
     z_noise: float = 0.02
     t_noise: float = 0.01
     unchanged_threshold: float = 5e-4
@@ -109,6 +117,19 @@ def hard_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, prior: 
     return tuples[:, :n], tuples[:, n:]
 
 
+def shifted_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, z_dim: int, low: float, high: float,
+                      generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
+    """``copies`` versions of each tuple whose produced entities all move by one random (x, z) offset of
+    length in ``[low, high]`` (centroid ``t = u[z_dim:z_dim+3]``, y is up)."""
+    u_in, u_out = u_in.repeat(copies, 1, 1), u_out.repeat(copies, 1, 1).clone()
+    b = u_out.shape[0]
+    angle = torch.rand(b, generator=generator) * 2 * torch.pi
+    length = low + torch.rand(b, generator=generator) * (high - low)
+    u_out[:, :, z_dim] += (length * torch.cos(angle))[:, None]
+    u_out[:, :, z_dim + 2] += (length * torch.sin(angle))[:, None]
+    return u_in, u_out
+
+
 class FeasibilityTask:
     """:class:`pasta.train.loop.TrainTask` of one skill's feasibility."""
 
@@ -126,6 +147,10 @@ class FeasibilityTask:
         self.val_in, self.val_out = val if len(val[0]) else train
         gen = torch.Generator().manual_seed(seed + 1)
         self.val_hard = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive, self.prior, gen)
+        # near misses, always measured (val_auc_shift), trained on only with shift_per_positive > 0
+        self.val_shift = shifted_negatives(self.val_in, self.val_out, 2, self.z_dim, cfg.shift_min, cfg.shift_max, gen)
+        if cfg.shift_per_positive > 0:
+            self.val_hard = _cat(self.val_hard, self.val_shift)
         m = len(self.val_in)
         self.val_random = (self.prior(m * n_in, gen).view(m, n_in, -1), self.prior(m * n_out, gen).view(m, n_out, -1))
 
@@ -148,6 +173,9 @@ class FeasibilityTask:
     def loss(self, batch: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
         u_in, u_out = self._noisy(self.train_in[batch], generator), self._noisy(self.train_out[batch], generator)
         hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
+        if self.cfg.shift_per_positive > 0:
+            hard = _cat(hard, shifted_negatives(u_in, u_out, self.cfg.shift_per_positive, self.z_dim,
+                                                self.cfg.shift_min, self.cfg.shift_max, generator))
         b, n, m = len(batch), u_in.shape[1], u_out.shape[1]
         rand = (self.prior(b * n, generator).view(b, n, -1), self.prior(b * m, generator).view(b, m, -1))
         return self._weighted((u_in, u_out), hard, rand)
@@ -166,10 +194,18 @@ class FeasibilityTask:
         pos = self.model(self.val_in, self.val_out).numpy()
         hard = self.model(*self.val_hard).numpy()
         rand = self.model(*self.val_random).numpy()
-        labels = np.r_[np.ones(len(pos)), np.zeros(len(hard))]
-        labels_r = np.r_[np.ones(len(pos)), np.zeros(len(rand))]
+        shift = self.model(*self.val_shift).numpy()
+
+        def auc(neg: np.ndarray) -> float:
+            return float(roc_auc_score(np.r_[np.ones(len(pos)), np.zeros(len(neg))], np.r_[pos, neg]))
+
         return {
             "val_loss": float(self._weighted((self.val_in, self.val_out), self.val_hard, self.val_random)),
-            "val_auc_hard": float(roc_auc_score(labels, np.r_[pos, hard])),
-            "val_auc_random": float(roc_auc_score(labels_r, np.r_[pos, rand])),
+            "val_auc_hard": auc(hard),
+            "val_auc_random": auc(rand),
+            "val_auc_shift": auc(shift),
         }
+
+
+def _cat(a: tuple[torch.Tensor, torch.Tensor], b: tuple[torch.Tensor, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+    return torch.cat([a[0], b[0]]), torch.cat([a[1], b[1]])
