@@ -59,6 +59,9 @@ class ExecuteConfig:
             the planner matched to the goal: give the controller that observed goal piece (matched by
             centroid) instead of the entity's decoding. Decodings blur thin pieces (a rolled sheet decodes
             about twice as thick), and the goal is known exactly.
+        retries: run a step again (from the new observation, same sub-goal) when it visibly failed: the
+            controller hit its step limit without reporting done, or fewer pieces are observed than the
+            skill produces (a cut whose bottom layer still joins the halves). 0 disables.
         emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
         log_every: log the dough cloud every this many env steps (actions are always logged).
     """
@@ -71,6 +74,7 @@ class ExecuteConfig:
     skip_threshold: float = 0.0
     closed_loop: bool = False
     goal_pieces: bool = True
+    retries: int = 1
     emd_points: int = 500
     emd_seed: int = 0
     log_every: int = 1
@@ -274,13 +278,23 @@ def execute_plan(
         if log:
             log.step_start(h, obs, labels, subgoal, step, attended)
         steps_run, done = 0, False
-        if not skipped:
+        expected = int(labels.max()) + 1 - len(attended) + skill.spec.n_out  # pieces after a successful step
+        attempts = 0
+        while not skipped and diverged is None and attempts <= cfg.retries:
+            if attempts:  # re-attend: the pieces that hold most of the tracked particles, as observed now
+                now = decompose_labels(sim.observe().dough, min_points=cfg.min_points) if not scene_scope else labels
+                if len(idx):
+                    ids = np.unique(now[idx], return_counts=True)
+                    keep = ids[0][ids[1] >= 0.1 * len(idx)]
+                    idx = np.flatnonzero(np.isin(now, keep))
+                if log:
+                    log.retry(h, step.skill, attempts + 1)
             controller = _controller(skill, cfg.controller)
             start_step = sim.step_count
             try:
                 res = run_skill(sim, skill, controller, idx, goal_points, max_steps=cfg.max_steps or None,
                                 idle_steps=cfg.idle_steps, record=log is not None)
-                steps_run, done = res.steps, res.done
+                steps_run, done = steps_run + res.steps, res.done
                 if log:
                     log.skill_run(start_step, skill, res, cfg.idle_steps)
             except Exception as exc:  # noqa: BLE001 - a diverged simulation ends the episode, scored as is
@@ -289,6 +303,11 @@ def execute_plan(
                 if not isinstance(exc, SimulationDiverged):
                     raise
                 diverged = str(exc)
+                break
+            attempts += 1
+            pieces = 1 if scene_scope else int(decompose_labels(sim.observe().dough, min_points=cfg.min_points).max()) + 1
+            if done and pieces >= expected:
+                break
         final = obs.dough if diverged else sim.observe().dough
         e = emd(final, goal, n=cfg.emd_points, seed=cfg.emd_seed)
         info = StepInfo(h, step.skill, step.inputs, attended, int(labels.max()) + 1, len(idx), steps_run, done,
@@ -365,6 +384,9 @@ class _Log:
         self.log.entities("/plan/subgoals", t, subgoal)
         self.log.message(t, "info", f"step {h}: {step.skill} on planned entities {list(step.inputs)} "
                                     f"-> observed entities {list(attended)}")
+
+    def retry(self, h: int, skill: str, attempt: int) -> None:
+        self.log.message(self.t(self.sim.step_count), "warning", f"step {h}: {skill} visibly failed; attempt {attempt}")
 
     def skill_run(self, start: int, skill: Skill, res: Any, idle: int) -> None:
         tool, traj = skill.tool, res.trajectory

@@ -69,7 +69,8 @@ def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
     skill = nudge
     skill.attach_policy(LearnedPolicy(net, "nudge", done_threshold=1.0))  # never done: runs to max_steps
     res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill}, encoder=box_encoder,
-                       goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64))
+                       goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64,
+                                                         retries=0))
     assert res.steps[0].env_steps == 3 and not res.steps[0].done and sim.step_count == 4
 
 
@@ -119,3 +120,31 @@ def test_goal_pieces_are_matched_by_centroid():
     final = [[9.0, 0.79, 0.8, 0.81], [9.0, 0.21, 0.2, 0.2]]  # z_dim 1, then the centroid
     got = match_goal_pieces(final, goal, labels, z_dim=1)
     assert len(got[0]) == 5 and len(got[1]) == 10
+
+
+@pytest.mark.sim
+def test_executor_retries_a_step_that_hit_its_step_limit(nudge, box_encoder, one_step_plan):
+    from pasta.sim import SimConfig, Simulator, crs_dough
+
+    from pasta.core.skill import Controller
+
+    class Forever(Controller):
+        def act(self, obs):
+            return np.array([-1.0, 0.0, 0.0, 0.0], np.float32), False  # never reports done
+
+    class Stubborn(type(nudge)):
+        def controller(self):
+            return Forever()
+
+    cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
+    sim = Simulator(cfg)
+    runs = {}
+    for retries in (0, 1):
+        obs = sim.reset(crs_dough(cfg.n_particles, rng=3, floor_y=sim.floor_y, length=0.2))
+        center = obs.dough.mean(0).tolist()
+        goal = obs.dough - np.array([0.03, 0.0, 0.0], np.float32)
+        res = execute_plan(sim, one_step_plan(center, 0.03), skills={"nudge": Stubborn()}, encoder=box_encoder,
+                           goal=goal, cfg=ExecuteConfig(max_steps=3, idle_steps=1, decode_points=200, retries=retries))
+        runs[retries] = res.steps[0]
+    assert runs[0].env_steps == 3 and not runs[0].done
+    assert runs[1].env_steps == 6 and not runs[1].done  # one retry from the new observation, then give up
