@@ -12,6 +12,7 @@ EPILOG = """arguments (key=value):
   data=data/demos        dataset directory (written by demos, read by the training stages)
   out=models             models root; OUT/pipeline.json records the settings of every unit
   num_demos=200          demonstrations per skill (same as demos.num)
+  wide_push_demos=150    long push demonstrations added after the push ones (demos/push-wide; 0: none)
   workers=2              demo generation processes (same as demos.workers)
   stages=demos,vae,feasibility,cost,policy
                          stages to run, in this order whatever the order given
@@ -27,6 +28,7 @@ EPILOG = """arguments (key=value):
 
 units and defaults (sized for a 2-core CPU; the settings the shipped models were trained with):
   demos/<skill>          pasta demos skill=<skill> num=<num_demos> workers=<workers> out=<data>
+  demos/push-wide        pasta demos skill=push num=<num_demos + wide_push_demos> scene=wide ...
   vae                    epochs=11 stride=5 threads=1                       -> OUT/vae
   feasibility/<skill>    threads=1; cut stride=3 (epochs 30);
                          push and roll stride=4 epochs=20                   -> OUT/feasibility/<skill>

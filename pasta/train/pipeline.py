@@ -2,7 +2,7 @@
 
 Units run in this order, each one a ``pasta demos`` or ``pasta train`` call::
 
-    demos/<skill> -> vae -> feasibility/<skill> -> cost -> policy/<skill>
+    demos/<skill> (+ demos/push-wide) -> vae -> feasibility/<skill> -> cost -> policy/<skill>
 
 Resuming. ``OUT/pipeline.json`` records, per unit, the settings it was (or is being) produced with: the
 resolved trainer configuration (less ``progress``, ``threads``, ``resume`` and ``workers``, which do
@@ -75,6 +75,8 @@ class PipelineConfig:
         data: dataset directory (written by the demos stage, read by the others).
         out: models root; also holds ``pipeline.json``.
         num_demos: demonstrations per skill (``demos.num``).
+        wide_push_demos: push demonstrations of ``pasta demos scene=wide`` added after the default
+            ones (unit ``demos/push-wide``; 0: none).
         workers: demo generation processes (``demos.workers``).
         stages: comma-separated stages to run, of demos, vae, feasibility, cost, policy.
         skills: comma-separated skills for the per-skill stages (demos, feasibility, policy).
@@ -86,6 +88,7 @@ class PipelineConfig:
     data: str = "data/demos"
     out: str = "models"
     num_demos: int = 200
+    wide_push_demos: int = 150
     workers: int = 2
     stages: str = ",".join(STAGES)
     skills: str = "cut,push,roll"
@@ -266,6 +269,11 @@ def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
             except ConfigError as exc:
                 raise ConfigError(f"{name}: {exc}") from None
             units.append(Unit(name, stage, skill, values, configs, _directory(cfg, stage, skill)))
+            if stage == "demos" and skill == "push" and cfg.wide_push_demos > 0:
+                # long pushes of bigger pieces (what cut_rearrange needs), appended after the default ones
+                wide = {**values, "num": int(values["num"]) + cfg.wide_push_demos, "scene": "wide"}
+                units.append(Unit("demos/push-wide", stage, skill, wide, _build(stage, skill, wide),
+                                  _directory(cfg, stage, skill)))
     if cfg.only:
         wanted = _names(cfg.only, "only")
         known = [u.name for u in units] + [s for s in stages]
