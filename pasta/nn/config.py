@@ -12,12 +12,13 @@ class PointVAEEncoderConfig(PluginConfig):
     """Config of the ``pc_vae`` encoder.
 
     Attributes:
-        weights: directory of a trained VAE (``pasta train vae ... out=models`` writes ``models/vae``).
+        weights: directory of a trained VAE (``pasta train vae ... out=models`` writes ``models/vae``);
+            empty: the shipped weights (:mod:`pasta.weights`).
         encode_points: points fed to the PointNet per entity (a fixed, deterministic subset).
         device: torch device of the network.
     """
 
-    weights: str = "models/vae"
+    weights: str = ""
     encode_points: int = 512
     device: str = "cpu"
 
@@ -26,7 +27,7 @@ class PointVAEEncoderConfig(PluginConfig):
 class FlatEncoderConfig(PointVAEEncoderConfig):
     """Config of the ``flat`` encoder (the whole scene as one latent; Flat 3D baseline)."""
 
-    weights: str = "models/flat_vae"
+    weights: str = ""
 
 
 @dataclass
@@ -34,9 +35,10 @@ class SetCostConfig(PluginConfig):
     """Config of the ``set_cost`` cost model.
 
     Attributes:
-        weights: directory of a trained cost network (``pasta train cost ... out=models`` writes ``models/cost``).
+        weights: directory of a trained cost network (``pasta train cost ... out=models`` writes ``models/cost``);
+            empty: the shipped weights (:mod:`pasta.weights`).
         device: torch device of the network.
     """
 
-    weights: str = "models/cost"
+    weights: str = ""
     device: str = "cpu"

@@ -59,7 +59,9 @@ class SetCostModel(CostModel):
 
         super().__init__(config or SetCostConfig())
         if model is None:
-            model = load_pair_cost(self.config.weights, device=self.config.device)
+            from pasta.weights import ROOT
+
+            model = load_pair_cost(self.config.weights or str(ROOT / "cost"), device=self.config.device)
         self.model = model.eval()
 
     @property

@@ -30,11 +30,15 @@ class PointVAEEncoder(Encoder):
     """
 
     scope = "entity"
+    shipped_dir = "vae"  # under the shipped weights (pasta.weights) when config.weights is empty
 
     def __init__(self, config: Any = None, *, model: PointVAE | None = None) -> None:
         super().__init__(config or self._default_config())
         if model is None:
-            model = load_vae(self.config.weights, scope=self.scope, device=self.config.device)
+            from pasta.weights import ROOT
+
+            weights = self.config.weights or str(ROOT / self.shipped_dir)
+            model = load_vae(weights, scope=self.scope, device=self.config.device)
         self.model = model.eval()
         self.z_dim = model.z_dim
         self.t_low = tuple(float(v) for v in model.t_low)
@@ -87,6 +91,7 @@ class FlatEncoder(PointVAEEncoder):
     """The whole dough cloud as ONE latent (Flat 3D baseline); same network, trained on whole scenes."""
 
     scope = "scene"
+    shipped_dir = "flat/vae"
 
     @classmethod
     def _default_config(cls) -> Any:
