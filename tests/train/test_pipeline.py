@@ -120,3 +120,13 @@ def test_command_line(three_demos, tmp_path, tiny, capsys):
     assert main(["pipeline", *_args(three_demos, tmp_path, tiny, "stages=vae")]) == 0
     out = capsys.readouterr().out
     assert "[1/1] vae done in" in out and "1 ran, 0 skipped" in out
+
+
+def test_demos_stage_adds_the_wide_push_unit():
+    from pasta.train.pipeline import PipelineConfig, plan
+
+    units = plan(PipelineConfig(stages="demos", num_demos=20, wide_push_demos=5), {})
+    wide = {u.name: u for u in units}["demos/push-wide"]
+    assert [u.name for u in units] == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll"]
+    assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (25, "wide", "push")
+    assert "demos/push-wide" not in [u.name for u in plan(PipelineConfig(stages="demos", wide_push_demos=0), {})]
