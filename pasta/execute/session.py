@@ -69,7 +69,11 @@ class Session:
     cost: Any = None
 
     def describe(self) -> dict[str, Any]:
+        from omegaconf import OmegaConf
+
+        planner = OmegaConf.to_container(self.cfg.planner) if self.method != "oracle" else None
         return {"task": self.task.name, "method": self.method, "planner": getattr(self.cfg.planner, "name", None),
+                "planner_settings": planner,
                 "controller": "heuristic" if self.method == "oracle" else self.exe.controller,
                 "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton}
 
