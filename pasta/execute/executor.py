@@ -246,9 +246,12 @@ def execute_plan(
     horizon = plan.horizon
     plans, current, h_plan = [plan], plan, 0
     scene_scope = getattr(encoder, "scope", "entity") == "scene"
-    goal_pieces = None  # entity label of every goal point
-    if cfg.goal_pieces:
-        goal_pieces = np.zeros(len(goal), np.int64) if scene_scope else decompose_labels(goal, min_points=cfg.min_points)
+
+    def entity_labels(points: np.ndarray) -> np.ndarray:
+        """``(P,)`` entity of every point; Flat 3D (a scene-scope encoder) sees the whole dough as one."""
+        return np.zeros(len(points), np.int64) if scene_scope else decompose_labels(points, min_points=cfg.min_points)
+
+    goal_pieces = entity_labels(goal) if cfg.goal_pieces else None  # entity label of every goal point
     infos: list[StepInfo] = []
     diverged = None
     for h in range(horizon):
@@ -257,10 +260,7 @@ def execute_plan(
         skill = skills[step.skill]
         before = current.initial if h_plan == 0 else current.steps[h_plan - 1].state
         obs = sim.observe()
-        if scene_scope:  # Flat 3D: the skill acts on the whole scene
-            labels = np.zeros(len(obs.dough), np.int64)
-        else:
-            labels = decompose_labels(obs.dough, min_points=cfg.min_points)
+        labels = entity_labels(obs.dough)
         attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=h_plan == 0)
         idx = np.flatnonzero(np.isin(labels, attended))
         subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points)
@@ -282,7 +282,7 @@ def execute_plan(
         attempts = 0
         while not skipped and diverged is None and attempts <= cfg.retries:
             if attempts:  # re-attend: the pieces that hold most of the tracked particles, as observed now
-                now = decompose_labels(sim.observe().dough, min_points=cfg.min_points) if not scene_scope else labels
+                now = entity_labels(sim.observe().dough)
                 if len(idx):
                     ids = np.unique(now[idx], return_counts=True)
                     keep = ids[0][ids[1] >= 0.1 * len(idx)]
@@ -305,7 +305,7 @@ def execute_plan(
                 diverged = str(exc)
                 break
             attempts += 1
-            pieces = 1 if scene_scope else int(decompose_labels(sim.observe().dough, min_points=cfg.min_points).max()) + 1
+            pieces = int(entity_labels(sim.observe().dough).max()) + 1
             if done and pieces >= expected:
                 break
         final = obs.dough if diverged else sim.observe().dough
