@@ -116,6 +116,7 @@ class PolicyTask:
         a_loss, d_loss, _ = self._losses(batch)
         return a_loss + self.cfg.done_weight * d_loss
 
+    @torch.no_grad()
     def validate(self) -> dict[str, float]:
         parts = [self._losses(b) for b in self.val]
         a = float(np.mean([float(p[0]) for p in parts]))
