@@ -45,7 +45,8 @@ def main(argv: list[str]) -> int:
     print("| task | method | horizon | configs | normalised improvement | success | paper | plan s | execute s |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for s in rows(directory):
-        paper = PAPER.get((s["task"], s["method"]))
+        default_run = s["name"] == f"{s['task']}_{s['method']}"  # not a horizon sweep or learned-policy run
+        paper = PAPER.get((s["task"], s["method"])) if default_run else None
         paper_txt = f"{paper[0]:.3f} / {100 * paper[1]:.0f}%" if paper else ""
         name = s["method"] + (" (learned)" if s.get("controller") == "learned" else "")
         print(f"| {s['task']} | {name} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
