@@ -137,14 +137,12 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         from pasta.plugins import get_plugins
 
         plugins = get_plugins()
-    from pasta.weights import models_root
+    from pasta.weights import models_root, weight_overrides
 
     mine, overrides = split_arguments(list(items))
     root = models_root(mine["models"])
     if mine["models"]:  # the encoder and cost weights under the given root unless set explicitly
-        keys = {o.partition("=")[0].strip() for o in overrides}
-        overrides += [f"{k}={root / sub}" for k, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost"))
-                      if k not in keys]
+        overrides += weight_overrides(root, overrides)
     cfg = load_config(overrides, plugins=plugins)
     num_points, min_points = _int(mine, "num_points"), _int(mine, "min_points")
     obs_pts, goal_pts = load_cloud(mine["obs"], "obs"), load_cloud(mine["goal"], "goal")

@@ -120,7 +120,7 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
     from pasta.execute import ExecuteConfig
     from pasta.plugins import get_plugins
     from pasta.tasks import get_task
-    from pasta.weights import models_root
+    from pasta.weights import models_root, weight_overrides
 
     if method not in METHODS:
         raise ConfigError(f"unknown method '{method}'{did_you_mean(method, METHODS)}; known methods: {', '.join(METHODS)}")
@@ -134,9 +134,7 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
     if method in ("pasta", "flat") and "planner" not in keys and task_name == "crs_twice":
         rest.append("planner=receding_horizon")
     if method != "flat":  # the flat models load from ROOT/flat (pasta.nn.flat.load_flat)
-        for key, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost")):
-            if key not in keys:
-                rest.append(f"{key}={root / sub}")
+        rest += weight_overrides(root, rest)
     cfg = load_config(rest, plugins=plugins)
     exe = build(ExecuteConfig, dict(execute or {}), command="pasta run/eval")
     exe = dataclasses.replace(exe, emd_points=task.config.emd_points, emd_seed=task.config.emd_seed)

@@ -18,7 +18,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-__all__ = ["ROOT", "bundle", "models_root", "shipped"]
+__all__ = ["ROOT", "bundle", "models_root", "shipped", "weight_overrides"]
 
 #: the directory of the shipped weights
 ROOT = Path(__file__).resolve().parent
@@ -28,6 +28,14 @@ _FILES = ("model.safetensors", "model.json", "metrics.json")
 def models_root(models: str | Path | None = None) -> Path:
     """The weights root to load from: ``models`` when given (a ``pasta train`` output), else the shipped one."""
     return Path(models) if models not in (None, "") else ROOT
+
+
+def weight_overrides(root: str | Path, given: list[str]) -> list[str]:
+    """``encoder.weights=ROOT/vae`` and ``cost_model.weights=ROOT/cost``, except for keys already in ``given``
+    (``key=value`` items): the run config's weights under one models root."""
+    keys = {item.partition("=")[0].strip() for item in given}
+    return [f"{key}={Path(root) / sub}" for key, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost"))
+            if key not in keys]
 
 
 def shipped(root: str | Path | None = None) -> list[str]:
