@@ -1,7 +1,5 @@
-"""Demonstrations: generation with the scripted experts (``pasta demos``) and the dataset loader."""
+"""Demonstrations: generation with the scripted experts (``pasta demos``); :mod:`pasta.train.data` reads them."""
 
-from pasta.demos.dataset import DemoBatch, DemoDataset, Demonstration, load_demo
 from pasta.demos.generate import DEMO_SKILLS, DemoConfig, demo_path, generate_demos, validate
 
-__all__ = ["DEMO_SKILLS", "DemoBatch", "DemoConfig", "DemoDataset", "Demonstration", "demo_path",
-           "generate_demos", "load_demo", "validate"]
+__all__ = ["DEMO_SKILLS", "DemoConfig", "demo_path", "generate_demos", "validate"]

@@ -1,4 +1,4 @@
-"""Demonstration generation (argument checks, a 3-demo dataset) and the dataset loader."""
+"""Demonstration generation (argument checks, a 3-demo dataset read back by the shared reader)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 
 from pasta.cli import main
 from pasta.core.errors import ConfigError, InputError
-from pasta.demos import DemoConfig, DemoDataset, generate_demos, validate
+from pasta.demos import DemoConfig, generate_demos, validate
 
 
 def test_bad_arguments_fail_before_any_work(tmp_path, capsys):
@@ -53,17 +53,17 @@ def test_generate_and_load_three_demos(tmp_path):
     assert again["generated"] == 1 and again["skipped"] == 2
     assert files[1].read_bytes() == first
 
-    data = DemoDataset(tmp_path)
-    assert data.skills == ["push"] and len(data) == 3
-    batches = list(data.batches("push", 8, seed=0, num_batches=2))
-    assert len(batches) == 2
-    b = batches[0]
-    assert b.obs.shape == (8, 400, 3) and b.goal.shape == (8, 400, 3) and b.action.shape == (8, 4)
-    assert b.tool.shape[0] == 8 and b.done.shape == (8,)
-    with pytest.raises(InputError, match="no 'cut'"):
-        next(data.batches("cut", 4))
+    from pasta.train.data import load_demos  # the one reader every trainer uses
+
+    demos = load_demos(tmp_path, ["push"])
+    assert len(demos) == 3 and demos[0].skill == "push"
+    assert demos[0].dough.shape[1:] == (400, 3) and demos[0].action.shape[1] == 4
+    with pytest.raises(InputError, match="no demonstrations"):
+        load_demos(tmp_path, ["cut"])
 
 
-def test_dataset_errors(tmp_path):
-    with pytest.raises(InputError, match="manifest"):
-        DemoDataset(tmp_path)
+def test_reader_errors(tmp_path):
+    from pasta.train.data import load_demos
+
+    with pytest.raises(InputError, match="not a pasta dataset: no manifest.json"):
+        load_demos(tmp_path)
