@@ -28,7 +28,7 @@ import torch
 
 from pasta.core import CostModel, Encoder, Plan, Planner, PlanningProblem, Skill, SkillSpec
 from pasta.planning.config import LatentPlannerConfig
-from pasta.planning.objective import plan_score
+from pasta.planning.objective import log_objective, plan_score
 from pasta.planning.rollout import build_plan, rollout
 from pasta.plugins.hookspecs import hookimpl
 
@@ -173,7 +173,7 @@ class ReferencePlanner(Planner):
                 score = plan_score(r.feasibility, r.cost, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
                 # Elites are ranked by the unfloored log-objective: the floor makes the score flat far from
                 # feasible plans, while sum(log f) - lambda * C still says which samples are closer.
-                ranking = r.feasibility.clamp(min=1e-30).log().sum(-1) - cfg.cost_weight * r.cost
+                ranking = log_objective(r.feasibility.clamp(min=1e-30).log(), r.cost, cost_weight=cfg.cost_weight)
             top = ranking.topk(n_elite).indices
             if float(score[top[0]]) > best_score:
                 best_score, best = float(score[top[0]]), samples[top[0]]
