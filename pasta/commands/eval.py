@@ -1,7 +1,8 @@
 """``pasta eval task=T method=M num=20``: a method's normalised improvement and success on a task's fixed test set.
 
-Episodes run on the task's fixed test seeds (``pasta.tasks.fixed_test_seeds``: 1000, 1001, ...). Every
-finished episode is appended to ``OUT/<task>_<method>[_h<H>][_<controller>].jsonl`` at once, so an
+Episodes run on the task's fixed test seeds (``pasta.tasks.fixed_test_seeds``: 1000, 1001, ...), or with
+``split=val`` on its validation seeds (2000, 2001, ...: choose settings there, report the test seeds). Every
+finished episode is appended to ``OUT/<task>_<method>[_h<H>][_learned][_val].jsonl`` at once, so an
 interrupted evaluation resumes where it stopped (``resume=false`` starts over); the summary (mean +/- std
 of the normalised improvement, success rate, planning and execution seconds) is printed and written
 next to it as ``.json``.
@@ -27,7 +28,7 @@ EPILOG = """examples:
   pasta eval task=crs_twice method=pasta num=20          # receding horizon with the given skeleton, as in the paper
   pasta eval task=crs method=pasta horizon=5 num=20      # a longer planning horizon than the task needs
   pasta eval task=cut_rearrange method=oracle num=20
-keys: task method num out models controller horizon skeleton resume threads, execute.<field>;
+keys: task method num split(test|val) out models controller horizon skeleton resume threads, execute.<field>;
 other key=value items go to the run config (planner, planner.*, device)."""
 
 
@@ -38,6 +39,8 @@ class EvalArgs:
     task: str = "crs"
     method: str = "pasta"
     num: int = 20
+    # "test": the fixed test seeds 1000, 1001, ... (report these); "val": 2000, 2001, ... (choose settings here)
+    split: str = "test"
     out: str = "runs/eval"
     models: str = ""
     horizon: int = 0
@@ -54,9 +57,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME method=NAME num=20 ...")
 
 
-def result_path(out: str | Path, task: str, method: str, horizon: int, controller: str) -> Path:
-    """``OUT/<task>_<method>[_h<H>][_learned].jsonl``."""
+def result_path(out: str | Path, task: str, method: str, horizon: int, controller: str, split: str = "test") -> Path:
+    """``OUT/<task>_<method>[_h<H>][_learned][_val].jsonl``."""
     name = f"{task}_{method}" + (f"_h{horizon}" if horizon else "") + ("_learned" if controller == "learned" else "")
+    name += "_val" if split == "val" else ""
     return Path(out) / f"{name}.jsonl"
 
 
@@ -76,7 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import split_overrides
     from pasta.config.overrides import build_many
     from pasta.execute.session import build_session
-    from pasta.tasks import fixed_test_seeds
+    from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
     own_run, execute_kw, rest = split_overrides(list(args.overrides))
     mine = [f"{k}={v}" for k, v in own_run.items()]
@@ -95,6 +99,8 @@ def run(args: argparse.Namespace) -> int:
     opts = build_many(mine, [EvalArgs], command="pasta eval")[0]
     if opts.num < 1:
         raise ConfigError(f"num must be >= 1, got {opts.num}")
+    if opts.split not in ("test", "val"):
+        raise ConfigError(f"split must be 'test' or 'val', got {opts.split!r}{did_you_mean(opts.split, ('test', 'val'))}")
     if any(i.partition("=")[0].strip() == "seed" for i in passthrough):
         raise ConfigError("pasta eval runs the fixed test seeds (1000, 1001, ...); use num=N, not seed=")
     if opts.threads > 0:
@@ -103,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(opts.threads)
     session = build_session(opts.task, method=opts.method, models=opts.models or None, config_overrides=passthrough,
                             execute=execute_kw, horizon=opts.horizon or None, skeleton=opts.skeleton)
-    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller)
+    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split)
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
     if opts.resume and path.exists():
@@ -113,9 +119,9 @@ def run(args: argparse.Namespace) -> int:
                 done[int(row["seed"])] = row
     elif path.exists():
         path.unlink()
-    seeds = fixed_test_seeds(opts.num)
+    seeds = fixed_test_seeds(opts.num) if opts.split == "test" else fixed_val_seeds(opts.num)
     todo = [s for s in seeds if s not in done]
-    print(f"eval {opts.task} / {opts.method}: {len(seeds)} test configs, {len(seeds) - len(todo)} already in {path}",
+    print(f"eval {opts.task} / {opts.method}: {len(seeds)} {opts.split} configs, {len(seeds) - len(todo)} already in {path}",
           file=sys.stderr)
     sim = session.task.make_sim() if todo else None
     for i, seed in enumerate(todo):
@@ -130,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
               f"{'success' if out.success else 'failure'}  (plan {out.plan_s:.1f} s, execute {out.execute_s:.1f} s)",
               file=sys.stderr, flush=True)
     rows = [done[s] for s in seeds]
-    summary = {**session.describe(), "seeds": [seeds[0], seeds[-1]], **summarise(rows)}
+    summary = {**session.describe(), "split": opts.split, "seeds": [seeds[0], seeds[-1]], **summarise(rows)}
     path.with_suffix(".json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"{opts.task} / {opts.method}: normalised improvement {summary['improvement_mean']:.3f} +/- "
           f"{summary['improvement_std']:.3f}, success {100 * summary['success_rate']:.0f}% over {len(rows)} configs "

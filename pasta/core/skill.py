@@ -109,6 +109,9 @@ class Skill:
     """
 
     spec: ClassVar[SkillSpec]
+    #: half width (metres) of the band the tool sweeps across its motion when it moves a piece; the
+    #: planner's clearance check (pasta.planning.clearance) widens a moved piece to at least this
+    sweep_half_width: ClassVar[float] = 0.0
 
     def __init__(self, config: Any = None) -> None:
         if not isinstance(getattr(type(self), "spec", None), SkillSpec):

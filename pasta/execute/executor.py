@@ -37,7 +37,7 @@ from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.skill import Controller, Skill
 
 __all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "equalise_density", "execute_plan",
-           "match_goal_pieces", "persisting_outputs"]
+           "match_goal_pieces", "persisting_outputs", "step_dependencies", "sweep_risk"]
 
 
 @dataclass
@@ -62,6 +62,10 @@ class ExecuteConfig:
         retries: run a step again (from the new observation, same sub-goal) when it visibly failed: the
             controller hit its step limit without reporting done, or fewer pieces are observed than the
             skill produces (a cut whose bottom layer still joins the halves). 0 disables.
+        reorder: run a later plan step first when the next one would sweep its piece (and its tool's
+            band, :attr:`~pasta.core.Skill.sweep_half_width`) through another observed piece and the
+            later step does not depend on it (it consumes nothing the skipped steps produce); see
+            :func:`sweep_risk`. The plan's latent states do not change, only the order.
         emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
         log_every: log the dough cloud every this many env steps (actions are always logged).
     """
@@ -75,6 +79,7 @@ class ExecuteConfig:
     closed_loop: bool = False
     goal_pieces: bool = True
     retries: int = 1
+    reorder: bool = True
     emd_points: int = 500
     emd_seed: int = 0
     log_every: int = 1
@@ -102,6 +107,7 @@ class StepInfo:
     emd: float
     normalized_improvement: float
     wall_s: float
+    plan_step: int = -1  # index of the executed step in its plan (differs from ``step`` when reordered)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -158,6 +164,39 @@ def persisting_outputs(plan: Plan, h: int) -> dict[int, int]:
     for k, step in enumerate(plan.steps):
         ids = [(k, j) for j in range(len(step.subgoal))] + [ids[i] for i in kept_indices(len(ids), step.inputs)]
     return {j: pos for pos, (k, j) in enumerate(ids) if k == h}
+
+
+def step_dependencies(plan: Plan) -> list[set[int]]:
+    """Per plan step, the earlier steps whose produced entities it consumes (directly)."""
+    ids: list[tuple[int, int]] = [(-1, i) for i in range(len(plan.initial))]
+    deps = []
+    for k, step in enumerate(plan.steps):
+        deps.append({ids[i][0] for i in step.inputs if ids[i][0] >= 0})
+        ids = [(k, j) for j in range(len(step.subgoal))] + [ids[i] for i in kept_indices(len(ids), step.inputs)]
+    return deps
+
+
+def sweep_risk(piece: np.ndarray, target: np.ndarray, others: np.ndarray, *, half_width: float = 0.0,
+               margin: float = 0.02) -> int:
+    """Points of ``others (O, 3)`` in the band a push of ``piece (P, 3)`` to centroid ``target (2,)`` (x, z)
+    sweeps: ahead of the piece's start, up to its front at the target, and within the piece's (or the
+    tool's ``half_width``, whichever is wider) lateral half extent plus ``margin`` of the line."""
+    if len(others) == 0 or len(piece) == 0:
+        return 0
+    xz = np.asarray(piece, np.float64)[:, [0, 2]]
+    c = xz.mean(0)
+    d = np.asarray(target, np.float64) - c
+    length = float(np.linalg.norm(d))
+    if length < 1e-3:
+        return 0
+    u = d / length
+    n = np.array([-u[1], u[0]])
+    rel = xz - c
+    front = float((rel @ u).max())
+    width = max(float(np.abs(rel @ n).max()), half_width) + margin
+    q = np.asarray(others, np.float64)[:, [0, 2]] - c
+    s, lat = q @ u, np.abs(q @ n)
+    return int(np.count_nonzero((s > 0) & (s < length + front + margin) & (lat < width)))
 
 
 def match_goal_pieces(final: Sequence[Sequence[float]], goal: np.ndarray, labels: np.ndarray, z_dim: int) -> dict[int, np.ndarray]:
@@ -244,7 +283,7 @@ def execute_plan(
     if log:
         log.start(obs, goal, plan)
     horizon = plan.horizon
-    plans, current, h_plan = [plan], plan, 0
+    plans, current = [plan], plan
     scene_scope = getattr(encoder, "scope", "entity") == "scene"
 
     def entity_labels(points: np.ndarray) -> np.ndarray:
@@ -254,22 +293,46 @@ def execute_plan(
     goal_pieces = entity_labels(goal) if cfg.goal_pieces else None  # entity label of every goal point
     infos: list[StepInfo] = []
     diverged = None
-    for h in range(horizon):
-        t0 = time.perf_counter()
-        step = current.steps[h_plan]
-        skill = skills[step.skill]
-        before = current.initial if h_plan == 0 else current.steps[h_plan - 1].state
-        obs = sim.observe()
-        labels = entity_labels(obs.dough)
-        attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=h_plan == 0)
-        idx = np.flatnonzero(np.isin(labels, attended))
+    executed: set[int] = set()  # plan steps of ``current`` already run
+
+    def prepare(j: int, obs: Any, labels: np.ndarray) -> tuple[tuple[int, ...], np.ndarray, list[np.ndarray]]:
+        """Plan step ``j``: the attended observed entities, their point indices and the controller's goal pieces."""
+        step = current.steps[j]
+        before = current.initial if j == 0 else current.steps[j - 1].state
+        attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=j == 0 and not executed)
         subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points)
         if goal_pieces is not None:
             matched = match_goal_pieces(current.steps[-1].state, goal, goal_pieces, encoder.z_dim)
-            for j, pos in persisting_outputs(current, h_plan).items():
+            for k, pos in persisting_outputs(current, j).items():
                 if pos in matched:
-                    subgoal[j] = matched[pos]
-        subgoal = equalise_density(subgoal, cfg.decode_points)
+                    subgoal[k] = matched[pos]
+        return attended, np.flatnonzero(np.isin(labels, attended)), equalise_density(subgoal, cfg.decode_points)
+
+    def pick(obs: Any, labels: np.ndarray) -> tuple[int, tuple[int, ...], np.ndarray, list[np.ndarray]]:
+        """The next plan step to run: plan order, unless it would sweep through another piece and a later
+        independent step would not (``cfg.reorder``)."""
+        deps = step_dependencies(current)
+        ready = [j for j in range(len(current.steps)) if j not in executed and deps[j] <= executed]
+        choice = None
+        for j in ready if cfg.reorder else ready[:1]:
+            attended, idx, subgoal = prepare(j, obs, labels)
+            if choice is None:
+                choice = (j, attended, idx, subgoal)
+            others = obs.dough[~np.isin(labels, attended)]
+            target = np.concatenate(subgoal, 0)[:, [0, 2]].mean(0)
+            width = float(getattr(skills[current.steps[j].skill], "sweep_half_width", 0.0))
+            if len(ready) == 1 or sweep_risk(obs.dough[idx], target, others, half_width=width) == 0:
+                return j, attended, idx, subgoal
+        assert choice is not None
+        return choice
+
+    for h in range(horizon):
+        t0 = time.perf_counter()
+        obs = sim.observe()
+        labels = entity_labels(obs.dough)
+        h_plan, attended, idx, subgoal = pick(obs, labels)
+        step = current.steps[h_plan]
+        skill = skills[step.skill]
         goal_points = np.concatenate(subgoal, 0)
         skipped = False
         if cfg.skip_threshold > 0:
@@ -311,15 +374,16 @@ def execute_plan(
         final = obs.dough if diverged else sim.observe().dough
         e = emd(final, goal, n=cfg.emd_points, seed=cfg.emd_seed)
         info = StepInfo(h, step.skill, step.inputs, attended, int(labels.max()) + 1, len(idx), steps_run, done,
-                        skipped, e, normalized_improvement(emd0, e), time.perf_counter() - t0)
+                        skipped, e, normalized_improvement(emd0, e), time.perf_counter() - t0, h_plan)
         infos.append(info)
         if log:
             log.step_end(info)
         if diverged:
             break
-        h_plan += 1
+        executed.add(h_plan)
         if cfg.closed_loop and h + 1 < horizon:
-            current, h_plan = replan(sim.observe().dough, horizon - h - 1), 0
+            current = replan(sim.observe().dough, horizon - h - 1)
+            executed = set()
             plans.append(current)
             if log:
                 log.plan(current)

@@ -21,6 +21,7 @@ import torch
 from pasta.core import CostModel, Encoder, Skill
 from pasta.core.errors import InputError
 from pasta.core.matching import min_cost_matching
+from pasta.planning.clearance import Clearance
 
 
 @dataclass
@@ -183,12 +184,14 @@ class FrozenMatching:
 
 @dataclass
 class Evaluation:
-    """Per group: ``log_feasibility (B, H)``, ``cost (B,)``, final states ``(B, K_H, D)``; the matching used."""
+    """Per group: ``log_feasibility (B, H)``, ``cost (B,)``, final states ``(B, K_H, D)``, the clearance
+    ``penalty (B,)`` (zeros unless asked for); the matching used."""
 
     log_feasibility: list[torch.Tensor]
     cost: list[torch.Tensor]
     finals: list[torch.Tensor]
     matching: FrozenMatching
+    penalty: list[torch.Tensor] = field(default_factory=list)
 
     @property
     def feasibility(self) -> list[torch.Tensor]:
@@ -201,25 +204,36 @@ def _take(state: torch.Tensor, index: torch.Tensor) -> torch.Tensor:
     return state.gather(1, index[:, :, None].expand(-1, -1, state.shape[-1]))
 
 
-def roll_states(batch: CandidateBatch, latents: Sequence[torch.Tensor]):
-    """Per group, the consumed/produced tuples of every step and the final state.
+def roll_states(batch: CandidateBatch, latents: Sequence[torch.Tensor], clearance: Clearance | None = None):
+    """Per group, the consumed/produced tuples of every step, the final state and the clearance penalty.
 
     Returns:
-        ``(tuples, finals)``: ``tuples[g][h] = (u_in (B, N_h, D), u_out (B, M_h, D))`` and ``finals[g]``
-        ``(B, K_H, D)``.
+        ``(tuples, finals, penalties)``: ``tuples[g][h] = (u_in (B, N_h, D), u_out (B, M_h, D))``,
+        ``finals[g]`` ``(B, K_H, D)`` and ``penalties[g]`` ``(B,)`` summed over the steps
+        (:mod:`pasta.planning.clearance`; zeros without ``clearance``).
     """
-    tuples, finals = [], []
+    tuples, finals, penalties = [], [], []
+    widths = clearance.sweep_widths(batch.sequences) if clearance is not None else None
     for grp, lat in zip(batch.groups, latents):
         b = lat.shape[0]
         state = batch.start.unsqueeze(0).expand(b, -1, -1)
+        penalty = lat.new_zeros(b)
+        ext = clearance.start_extent.to(lat.dtype).unsqueeze(0).expand(b, -1, -1) if clearance is not None else None
         steps = []
         for h, (off, (_, m)) in enumerate(zip(grp.offsets, grp.signature)):
             new = lat[:, off : off + m]
-            steps.append((_take(state, grp.inputs[h]), new))
+            u_in = _take(state, grp.inputs[h])
+            steps.append((u_in, new))
+            if clearance is not None:
+                p, e_new = clearance.step_penalty(u_in, _take(ext, grp.inputs[h]), new, _take(state, grp.kept[h]),
+                                                  _take(ext, grp.kept[h]), widths[grp.seq, h])
+                penalty = penalty + p
+                ext = torch.cat([e_new, _take(ext, grp.kept[h])], 1)
             state = torch.cat([new, _take(state, grp.kept[h])], 1)
         tuples.append(steps)
         finals.append(state)
-    return tuples, finals
+        penalties.append(penalty)
+    return tuples, finals, penalties
 
 
 def evaluate(
@@ -229,6 +243,7 @@ def evaluate(
     cost_model: CostModel,
     *,
     frozen: FrozenMatching | None = None,
+    clearance: Clearance | None = None,
 ) -> Evaluation:
     """Log-feasibility of every step and the final set cost of every sample, batched.
 
@@ -236,12 +251,13 @@ def evaluate(
         batch: the candidates (their attention; their own latents are ignored).
         latents: per group, ``(B_g, sum_h M_h, D)`` sub-goal latents (already clamped).
         frozen: evaluate the cost only on these matched pairs; ``None`` solves the matching.
+        clearance: also score moving pieces through others (:mod:`pasta.planning.clearance`).
 
     The set cost matches ``min(K_H, G)`` pairs: every final entity to a distinct goal entity when
     ``K_H <= G``, every goal entity to a distinct final entity otherwise (partial windows of the
     receding-horizon planner may end with a set size other than the goal's).
     """
-    tuples, finals = roll_states(batch, latents)
+    tuples, finals, penalties = roll_states(batch, latents, clearance)
     # -- feasibility: one call per skill over every (group, step, sample) that uses it ---------------
     longest = max(len(s) for s in batch.skill_ids)
     seq_skill = torch.tensor([list(s) + [-1] * (longest - len(s)) for s in batch.skill_ids], dtype=torch.long)
@@ -279,7 +295,7 @@ def evaluate(
                 cols.append(torch.cat([p for _, p in ps])[order.argsort()])
         feas.append(torch.stack(cols, 1))
     cost, matching = set_costs(batch, finals, cost_model, frozen=frozen)
-    return Evaluation(feas, cost, finals, matching)
+    return Evaluation(feas, cost, finals, matching, penalties)
 
 
 def set_costs(

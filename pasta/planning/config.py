@@ -36,6 +36,10 @@ class LatentPlannerConfig(PluginConfig):
     # op for <= 4 entities); "frozen" solves it at the first iteration and afterwards evaluates the cost
     # model only on the matched pairs (the paper's choice; 1/G of the cost-model work). "auto": frozen.
     matching: str = "auto"
+    # Clearance: add this times the path-overlap penalty of pieces moved through other pieces to the plan
+    # cost (pasta.planning.clearance; 0 disables, the paper has no such term). One full overlap then costs
+    # cost_weight * clearance_weight = 5 in log score, like a step at feasibility e^-5.
+    clearance_weight: float = 0.05
     keep_per_sequence: int = 4  # also: candidates per sequence reported in plan.info (paper top-4)
 
 

@@ -4,7 +4,8 @@
 candidates per sequence (random attention per sample and step, sampled once; sub-goal latents from the
 encoder prior) and improves all of them at once, either with Adam on the sub-goal latents
 (``method="adam"``, PASTA) or with the cross-entropy method (``method="cem"``, the paper's
-"no gradient" ablation). Every iteration evaluates all samples of all sequences with
+"no gradient" ablation). With ``planner.clearance_weight > 0`` the plan cost also counts pieces moved
+through other pieces (:mod:`pasta.planning.clearance`). Every iteration evaluates all samples of all sequences with
 :func:`pasta.planning.batch.evaluate` (one feasibility call per skill, one cost-model call); ``t`` is
 projected into the encoder's centroid box after every update. The best sample by plan score wins.
 """
@@ -22,6 +23,7 @@ import torch
 from pasta.core import PlanningProblem
 from pasta.core.errors import ConfigError
 from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, sample_candidates
+from pasta.planning.clearance import Clearance
 from pasta.planning.config import LatentPlannerConfig
 from pasta.planning.objective import log_objective, plan_objective, plan_score
 
@@ -87,7 +89,10 @@ def search(
     batch = sample_candidates(start, problem.goal, sequences, problem.skill_map, problem.encoder, config.num_samples, generator)
     samples = batch.size
     t1 = time.perf_counter()
-    opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std)
+    clearance = None
+    if config.clearance_weight > 0:
+        clearance = Clearance.from_problem(problem.encoder, start, problem.goal, skills=problem.skills)
+    opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance)
     scores = opt.run()
     t2 = time.perf_counter()
     result = _select(opt.batch, scores, config.keep_per_sequence)
@@ -97,8 +102,10 @@ def search(
 
 
 class _Optimiser:
-    def __init__(self, problem, batch: CandidateBatch, cfg: LatentPlannerConfig, gen, method, elite_fraction, min_std):
+    def __init__(self, problem, batch: CandidateBatch, cfg: LatentPlannerConfig, gen, method, elite_fraction, min_std,
+                 clearance: Clearance | None = None):
         self.problem, self.batch, self.cfg, self.gen, self.method = problem, batch, cfg, gen, method
+        self.clearance = clearance
         self.elite_fraction, self.min_std = elite_fraction, min_std
         self.skills, self.cost, self.encoder = problem.skill_map, problem.cost, problem.encoder
         self.freeze = cfg.matching in ("auto", "frozen")
@@ -108,21 +115,23 @@ class _Optimiser:
     def _objective(self, lat: list[torch.Tensor], grad: bool) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
         cfg = self.cfg
         with torch.set_grad_enabled(grad):
-            ev = evaluate(self.batch, lat, self.skills, self.cost, frozen=self.frozen)
+            ev = evaluate(self.batch, lat, self.skills, self.cost, frozen=self.frozen, clearance=self.clearance)
             if self.freeze and self.frozen is None:
                 self.frozen = ev.matching
+            # the plan cost: set cost to the goal plus the weighted clearance penalty (zero when off)
+            cost = [c + cfg.clearance_weight * p for c, p in zip(ev.cost, ev.penalty)]
             if cfg.objective == "log":
-                obj = [log_objective(lf, c, cost_weight=cfg.cost_weight) for lf, c in zip(ev.log_feasibility, ev.cost)]
+                obj = [log_objective(lf, c, cost_weight=cfg.cost_weight) for lf, c in zip(ev.log_feasibility, cost)]
             else:
                 obj = [plan_objective(lf.exp(), c, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor,
-                                      aux_weight=cfg.aux_weight) for lf, c in zip(ev.log_feasibility, ev.cost)]
+                                      aux_weight=cfg.aux_weight) for lf, c in zip(ev.log_feasibility, cost)]
         self.evaluations += self.batch.size
         # Ranking (halving, CEM elites): the log of the unfloored score. The floor only exists to shape
         # gradients; without it, samples far from feasible still say which of them is closer.
         self._log_score = [log_objective(lf.detach(), c.detach(), cost_weight=cfg.cost_weight)
-                           for lf, c in zip(ev.log_feasibility, ev.cost)]
+                           for lf, c in zip(ev.log_feasibility, cost)]
         scores = [plan_score(lf.detach().exp(), c.detach(), cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
-                  for lf, c in zip(ev.log_feasibility, ev.cost)]
+                  for lf, c in zip(ev.log_feasibility, cost)]
         return obj, scores
 
     def run(self) -> list[torch.Tensor]:

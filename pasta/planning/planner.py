@@ -61,7 +61,7 @@ class LatentPlanner(Planner):
         """Re-evaluate the chosen candidate with :func:`build_plan`; time it as ``select``."""
         t0 = time.perf_counter()
         plan = build_plan(problem, skeleton, attention, subgoals, planner=self.name, cost_weight=self.cfg.cost_weight,
-                          floor=self.cfg.feasibility_floor, info=info)
+                          floor=self.cfg.feasibility_floor, clearance_weight=float(self.cfg.clearance_weight), info=info)
         timings = {**timings, "select": time.perf_counter() - t0}
         timings["total"] = sum(timings.values())
         return dataclasses.replace(plan, timings=timings)

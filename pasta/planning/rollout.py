@@ -14,6 +14,7 @@ import torch
 from pasta.core import Plan, PlanningProblem, PlanStep, kept_indices
 from pasta.core.errors import InputError
 from pasta.core.plan import as_latents
+from pasta.planning.clearance import Clearance
 from pasta.planning.objective import plan_score
 
 
@@ -25,11 +26,13 @@ class Rollout:
         feasibility: ``(B, H)`` per-step feasibility.
         states: ``H`` tensors ``(B, K_h, D)``, the latent set after each step.
         cost: ``(B,)`` set cost of the last state against the goal.
+        penalty: ``(B,)`` clearance penalty (:mod:`pasta.planning.clearance`; zeros when not asked for).
     """
 
     feasibility: torch.Tensor
     states: list[torch.Tensor]
     cost: torch.Tensor
+    penalty: torch.Tensor | None = None
 
 
 def rollout(
@@ -37,6 +40,7 @@ def rollout(
     skeleton: Sequence[str],
     attention: Sequence[Sequence[int]],
     subgoals: Sequence[torch.Tensor],
+    clearance: Clearance | None = None,
 ) -> Rollout:
     """Apply ``skeleton`` to the observed set.
 
@@ -45,6 +49,7 @@ def rollout(
         skeleton: ``H`` skill names.
         attention: per step, the indices of the consumed entities in the set before the step.
         subgoals: per step, ``(B, M_h, D)`` latents of the produced entities.
+        clearance: also score pieces moved through others.
     """
     if not (len(skeleton) == len(attention) == len(subgoals)):
         raise InputError(f"skeleton, attention and subgoals must have one entry per step, got {len(skeleton)}, {len(attention)}, {len(subgoals)}")
@@ -52,13 +57,20 @@ def rollout(
     batch = subgoals[0].shape[0] if subgoals else 1
     state = problem.obs.unsqueeze(0).expand(batch, -1, -1)
     feas, states = [], []
+    penalty = state.new_zeros(batch)
+    ext = clearance.start_extent.to(state.dtype).unsqueeze(0).expand(batch, -1, -1) if clearance is not None else None
     for name, inputs, new in zip(skeleton, attention, subgoals):
-        kept = kept_indices(state.shape[1], inputs)
+        kept = list(kept_indices(state.shape[1], inputs))
         feas.append(skills[name].feasibility(state[:, list(inputs)], new))
-        state = torch.cat([new, state[:, list(kept)]], 1)
+        if clearance is not None:
+            sweep = state.new_full((batch,), clearance.sweep.get(name, 0.0))
+            p, e_new = clearance.step_penalty(state[:, list(inputs)], ext[:, list(inputs)], new, state[:, kept], ext[:, kept], sweep)
+            penalty = penalty + p
+            ext = torch.cat([e_new, ext[:, kept]], 1)
+        state = torch.cat([new, state[:, kept]], 1)
         states.append(state)
     goal = problem.goal.unsqueeze(0).expand(batch, -1, -1)
-    return Rollout(torch.stack(feas, -1), states, problem.cost.set_cost(state, goal))
+    return Rollout(torch.stack(feas, -1), states, problem.cost.set_cost(state, goal), penalty)
 
 
 def build_plan(
@@ -70,14 +82,26 @@ def build_plan(
     planner: str,
     cost_weight: float,
     floor: float,
+    clearance_weight: float = 0.0,
     timings: dict[str, float] | None = None,
     info: dict | None = None,
 ) -> Plan:
-    """Evaluate one candidate (``subgoals`` as ``(M_h, D)`` tensors) and return it as a :class:`Plan`."""
+    """Evaluate one candidate (``subgoals`` as ``(M_h, D)`` tensors) and return it as a :class:`Plan`.
+
+    With ``clearance_weight > 0`` the score counts ``clearance_weight`` times the clearance penalty as
+    cost (as the planners do) and ``plan.info["clearance_penalty"]`` records the penalty;
+    ``plan.final_cost`` stays the set cost.
+    """
+    info = dict(info or {})
     with torch.no_grad():
         batched = [problem.encoder.clamp(s.detach()).unsqueeze(0) for s in subgoals]
-        result = rollout(problem, skeleton, attention, batched)
-        score = plan_score(result.feasibility, result.cost, cost_weight=cost_weight, floor=floor)
+        clearance = (Clearance.from_problem(problem.encoder, problem.obs, problem.goal, skills=problem.skills)
+                     if clearance_weight > 0 else None)
+        result = rollout(problem, skeleton, attention, batched, clearance)
+        score = plan_score(result.feasibility, result.cost + clearance_weight * result.penalty, cost_weight=cost_weight,
+                           floor=floor)
+        if clearance is not None:
+            info["clearance_penalty"] = float(result.penalty[0])
     steps = tuple(
         PlanStep(
             skill=name,
@@ -97,5 +121,5 @@ def build_plan(
         planner=planner,
         seed=problem.seed,
         timings=dict(timings or {}),
-        info=dict(info or {}),
+        info=info,
     )

@@ -16,6 +16,7 @@ from pasta.tasks.base import (
     cache_root,
     split_pieces,
     fixed_test_seeds,
+    fixed_val_seeds,
 )
 from pasta.tasks.executor import SkillRun, Trajectory, piece_indices, run_skill, skill_observation
 
@@ -35,6 +36,7 @@ __all__ = [
     "split_pieces",
     "task_names",
     "fixed_test_seeds",
+    "fixed_val_seeds",
 ]
 
 

@@ -34,6 +34,8 @@ GENERATOR_VERSION = 1
 SCORING_FIELDS = ("threshold", "emd_points", "emd_seed")
 #: the fixed test sets use these seeds (demonstrations and training scenes use other streams)
 TEST_SEED_BASE = 1000
+#: the validation sets (choose settings here, report on the test seeds) use these
+VAL_SEED_BASE = 2000
 
 
 def cache_root() -> Path:
@@ -46,6 +48,13 @@ def fixed_test_seeds(num: int = 20) -> list[int]:
     if num < 1:
         raise InputError(f"num must be >= 1, got {num}")
     return list(range(TEST_SEED_BASE, TEST_SEED_BASE + num))
+
+
+def fixed_val_seeds(num: int = 20) -> list[int]:
+    """The seeds of a task's validation set of ``num`` instances (disjoint from the test seeds)."""
+    if num < 1:
+        raise InputError(f"num must be >= 1, got {num}")
+    return list(range(VAL_SEED_BASE, VAL_SEED_BASE + num))
 
 
 @dataclass

@@ -148,3 +148,38 @@ def test_executor_retries_a_step_that_hit_its_step_limit(nudge, box_encoder, one
         runs[retries] = res.steps[0]
     assert runs[0].env_steps == 3 and not runs[0].done
     assert runs[1].env_steps == 6 and not runs[1].done  # one retry from the new observation, then give up
+
+
+def test_step_dependencies_follow_the_produced_entities():
+    from pasta.core.plan import Plan
+    from pasta.execute.executor import step_dependencies
+
+    def lat(k):
+        return tuple((float(i),) * 4 for i in range(k))
+
+    # cut the dough (0) -> push piece 1 (a cut output) -> push piece 1 of that state (the other cut output)
+    steps = [PlanStep("cut", (0,), lat(2), 1.0, lat(2)), PlanStep("push", (1,), lat(1), 1.0, lat(2)),
+             PlanStep("push", (1,), lat(1), 1.0, lat(2))]
+    plan = Plan(steps=tuple(steps), initial=lat(1), goal=lat(2), final_cost=0.0, score=1.0, planner="t", seed=0)
+    assert step_dependencies(plan) == [set(), {0}, {0}]  # the two pushes are independent: either may go first
+    # push the piece the first push produced: a chain
+    chained = Plan(steps=(steps[0], steps[1], PlanStep("push", (0,), lat(1), 1.0, lat(2))), initial=lat(1), goal=lat(2),
+                   final_cost=0.0, score=1.0, planner="t", seed=0)
+    assert step_dependencies(chained) == [set(), {0}, {1}]
+
+
+def test_sweep_risk_sees_pieces_in_the_way_and_the_tool_band():
+    from pasta.execute.executor import sweep_risk
+
+    rng = np.random.default_rng(0)
+
+    def box(cx, cz, hx=0.05, hz=0.03, n=200):
+        return np.stack([rng.uniform(cx - hx, cx + hx, n), rng.uniform(0, 0.05, n), rng.uniform(cz - hz, cz + hz, n)], 1)
+
+    piece = box(0.8, 0.5)
+    target = np.array([0.2, 0.5])
+    assert sweep_risk(piece, target, box(0.5, 0.5)) > 0  # straight in the way
+    assert sweep_risk(piece, target, box(0.95, 0.5)) == 0  # behind the piece
+    assert sweep_risk(piece, target, box(0.5, 0.6)) == 0  # beside the path, clear of the piece
+    assert sweep_risk(piece, target, box(0.5, 0.6), half_width=0.1) > 0  # but in the pusher paddle's band
+    assert sweep_risk(piece, np.array([0.8, 0.5]), box(0.5, 0.5)) == 0  # no motion, no sweep

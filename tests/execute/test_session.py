@@ -74,3 +74,20 @@ def test_eval_writes_one_line_per_episode_and_resumes(tmp_path, monkeypatch):
         eval_cmd.run(argparse.Namespace(overrides=["task=crs", "seed=3", f"out={tmp_path}"]))
     with pytest.raises(ConfigError, match="did you mean 'num'"):
         eval_cmd.run(argparse.Namespace(overrides=["task=crs", "nmu=3", f"out={tmp_path}"]))
+
+
+def test_eval_validation_split_runs_its_own_seeds_into_its_own_file(tmp_path, monkeypatch):
+    from pasta.commands import eval as eval_cmd
+    from pasta.tasks import fixed_test_seeds, fixed_val_seeds, get_task
+
+    assert not set(fixed_val_seeds(20)) & set(fixed_test_seeds(20))
+    task = get_task("crs")
+    task.make_sim = lambda: None
+    fake = _FakeSession(task)
+    monkeypatch.setattr("pasta.execute.session.build_session", lambda *a, **k: fake)
+    assert eval_cmd.run(argparse.Namespace(overrides=["task=crs", "num=2", "split=val", f"out={tmp_path}"])) == 0
+    assert fake.calls == [2000, 2001]
+    assert not (tmp_path / "crs_pasta.jsonl").exists()
+    assert json.loads((tmp_path / "crs_pasta_val.json").read_text())["split"] == "val"
+    with pytest.raises(ConfigError, match="split must be 'test' or 'val'"):
+        eval_cmd.run(argparse.Namespace(overrides=["task=crs", "split=train", f"out={tmp_path}"]))

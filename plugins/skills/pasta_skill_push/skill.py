@@ -152,6 +152,7 @@ class PushSkill(Skill):
     """push one dough piece to a new place with the pusher (1 -> 1 entities, tool: pusher)."""
 
     spec = SPEC
+    sweep_half_width = PUSHER_HALF[2]  # the paddle spans the piece and more, across the push line
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("max_face_slide", "align_after")
 
