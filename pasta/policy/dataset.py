@@ -32,13 +32,16 @@ __all__ = ["Batch", "DemoSet"]
 @dataclass
 class Batch:
     """One training batch (numpy float32): ``dough (B, P, 3)``, ``tool (B, T, 3)``, ``goal (B, G, 3)``,
-    ``action (B, A)``, ``done (B,)`` in {0, 1}."""
+    ``action (B, A)``, ``done (B,)`` in {0, 1}, ``step (B,)`` the step index ``t`` of each sample within its
+    demonstration (actions taken before it), ``pose (B, 7)`` the tool pose at that step."""
 
     dough: np.ndarray
     tool: np.ndarray
     goal: np.ndarray
     action: np.ndarray
     done: np.ndarray
+    step: np.ndarray | None = None
+    pose: np.ndarray | None = None
 
 
 def _subsample(cloud: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -83,7 +86,7 @@ class DemoSet:
     def sample(self, rows: np.ndarray, rng: np.random.Generator) -> Batch:
         """The batch of transitions ``rows`` (indices into ``self.index``), goals and noise drawn from ``rng``."""
         p, tp, gp = self.sizes
-        out = {k: [] for k in ("dough", "tool", "goal", "action", "done")}
+        out = {k: [] for k in ("dough", "tool", "goal", "action", "done", "step", "pose")}
         for r in rows:
             di, t = self.index[r]
             demo = self.demos[di]
@@ -97,6 +100,8 @@ class DemoSet:
             out["goal"].append(_subsample(demo.dough[tg + 1], gp, rng))
             out["action"].append(demo.action[t])
             out["done"].append(float(t == tg))
+            out["step"].append(float(t))
+            out["pose"].append(demo.tool_pose[t])
         b = {k: np.asarray(np.stack(v), np.float32) for k, v in out.items()}
         if self.noise > 0:
             for k in ("dough", "tool", "goal"):

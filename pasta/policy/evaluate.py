@@ -7,7 +7,8 @@ initial state with that goal cloud as its sub-goal, and is scored by the normali
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
 
-``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=cut,push,roll] [out=FILE.json]``
+``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=cut,push,roll] [done_threshold=T] [min_steps=M] [max_steps=C] [out=FILE.json]``
+(the stopping rule: the checkpoint's own, ``config.controller``, unless given.)
 (the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
 prints the table of docs/policies.md.
 """
@@ -169,6 +170,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         skill = get_plugins().skills.create(name)
         if "learned" in controllers:
             kw = {"done_threshold": float(args["done_threshold"])} if "done_threshold" in args else {}
+            for key in ("min_steps", "max_steps"):
+                if key in args:
+                    kw[key] = int(args[key])
             load_policy(models / POLICY_DIR / name, skill, **kw)
         max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
         results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed), controllers,

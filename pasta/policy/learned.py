@@ -4,7 +4,7 @@
 :class:`~pasta.core.skill.Controller` contract): it subsamples the observed piece, the tool points
 and the sub-goal to the network's point counts with a seeded generator, runs the network and returns
 the action ``(A,)`` in ``[-1, 1]`` and ``done`` (done probability above ``done_threshold``, never
-before ``min_steps`` actions).
+before ``min_steps`` actions; always at ``max_steps`` actions when that is set).
 
 Checkpoints: ``DIR/model.safetensors`` + ``DIR/model.json`` with module ``"policy"`` and config
 ``{"skill", "tool", "network": PolicyConfig}`` (written by :func:`pasta.policy.train.train_policy`
@@ -37,15 +37,21 @@ class LearnedPolicy:
         skill: name of the skill it was trained for (checked when a controller is made).
         done_threshold: done when ``sigmoid(logit) > done_threshold``.
         min_steps: the done head is ignored before this many actions.
+        max_steps: done at this many actions whatever the done head says (0: no limit of its own; the
+            skill's step limit still applies).
         seed: seed of the point subsampling of each controller.
+
+    A checkpoint may carry its stopping rule (selected on validation configs by
+    :mod:`pasta.policy.select`) in ``config.controller``; :meth:`load` uses it unless overridden.
     """
 
     def __init__(self, net: PolicyNet, skill: str, *, done_threshold: float = 0.5, min_steps: int = 1,
-                 seed: int = 0) -> None:
+                 max_steps: int = 0, seed: int = 0) -> None:
         self.net = net.eval()
         self.skill = skill
         self.done_threshold = done_threshold
         self.min_steps = min_steps
+        self.max_steps = max_steps
         self.seed = seed
 
     @property
@@ -61,7 +67,9 @@ class LearnedPolicy:
                                hint=f"train one with `pasta train policy skill={skill or 'NAME'} data=DIR out={directory}`")
         net = PolicyNet(PolicyConfig.from_dict(ckpt.config["network"]))
         net.load_state_dict(ckpt.tensors)
-        return cls(net.to(device), ckpt.config["skill"], **kwargs)
+        rule = {k: v for k, v in dict(ckpt.config.get("controller") or {}).items()
+                if k in ("done_threshold", "min_steps", "max_steps")}
+        return cls(net.to(device), ckpt.config["skill"], **{**rule, **kwargs})
 
     def controller(self, skill: Skill) -> PolicyController:
         """A fresh closed-loop controller for ``skill`` (must be the skill the policy was trained for)."""
@@ -70,11 +78,24 @@ class LearnedPolicy:
         return PolicyController(self)
 
     @torch.no_grad()
-    def predict(self, dough: np.ndarray, tool: np.ndarray, goal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def predict(self, dough: np.ndarray, tool: np.ndarray, goal: np.ndarray,
+                step: np.ndarray | None = None, pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Batched inference: ``dough (B, P, 3)``, ``tool (B, T, 3)``, ``goal (B, G, 3)`` (already at the
-        network's point counts) -> ``action (B, A)``, ``done probability (B,)``."""
+        network's point counts) and, for a network with ``step_feature``, ``step (B,)`` (actions taken so
+        far; default 0) and, with ``pose_feature``, ``pose (B, 7)`` (the tool pose; required) ->
+        ``action (B, A)``, ``done probability (B,)``."""
         dev = next(self.net.parameters()).device
-        a, logit = self.net(*(torch.as_tensor(np.asarray(x, np.float32), device=dev) for x in (dough, tool, goal)))
+        clouds = [torch.as_tensor(np.asarray(x, np.float32), device=dev) for x in (dough, tool, goal)]
+        t = None
+        if self.net.cfg.step_feature:
+            t = torch.as_tensor(np.zeros(len(dough)) if step is None else np.asarray(step, np.float32).reshape(-1),
+                                dtype=torch.float32, device=dev)
+        p = None
+        if self.net.cfg.pose_feature:
+            if pose is None:
+                raise InputError("this policy takes the tool pose: pass pose (B, 7)")
+            p = torch.as_tensor(np.asarray(pose, np.float32).reshape(-1, 7), device=dev)
+        a, logit = self.net(*clouds, t, p)
         return a.cpu().numpy(), torch.sigmoid(logit).cpu().numpy()
 
 
@@ -102,10 +123,12 @@ class PolicyController(Controller):
         dough = self._pick(obs.piece, cfg.dough_points, "piece")
         tool = self._pick(obs.tool_points, cfg.tool_points, "tool_points")
         goal = self._pick(obs.goal, cfg.goal_points, "goal")
-        action, prob = self.policy.predict(dough[None], tool[None], goal[None])
+        action, prob = self.policy.predict(dough[None], tool[None], goal[None], np.array([self.steps]),
+                                            np.asarray(obs.tool_pose, np.float32).reshape(1, -1)[:, :7])
         self.steps += 1
         self.last_done_prob = float(prob[0])
         done = self.steps >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold
+        done = done or 0 < self.policy.max_steps <= self.steps
         return action[0].astype(np.float32), bool(done)
 
 

@@ -11,6 +11,16 @@ concatenated to one cloud of ``P + T + G`` points, each with a one-hot source fe
 shifted so that the dough centroid lies at ``x = z = 0`` (``y``, the height above the floor, is
 kept): actions are relative tool motions, so the policy need not learn every placement.
 
+Optional low-dimensional inputs (off in checkpoints written before they existed, which load unchanged),
+embedded by a small MLP (``aux_widths``) and concatenated to the global point feature before the heads:
+
+- ``step_feature``: the execution step ``t`` (actions taken so far in this skill execution), as
+  ``t / step_scale``. A multi-phase skill is not Markov in one frame: the cut's knife passes the same
+  heights going down, up and down again, a roll's pass count is not visible.
+- ``pose_feature``: the tool pose ``(7,)`` (position, quaternion ``w, x, y, z``), the position shifted
+  like the clouds and times ``encoder.pos_scale``. The same information as the tool cloud, but exact: the
+  max-pooled cloud feature locates the tool only coarsely.
+
 Output: ``action (B, A)`` in ``[-1, 1]`` (tanh) and ``done (B,)`` logits.
 """
 
@@ -37,6 +47,10 @@ class PolicyConfig:
         center_xz: shift every cloud so that the dough centroid is at ``x = z = 0``.
         encoder: the PointNet++ sizes.
         head_widths: hidden widths of the action and done heads.
+        step_feature: feed the execution step ``t / step_scale`` to the heads.
+        step_scale: divisor of the step index.
+        pose_feature: feed the tool pose ``(7,)`` to the heads.
+        aux_widths: widths of the MLP that embeds the step / pose inputs.
     """
 
     action_dim: int = 2
@@ -46,10 +60,20 @@ class PolicyConfig:
     center_xz: bool = True
     encoder: PointNet2Config = field(default_factory=PointNet2Config)
     head_widths: tuple[int, ...] = (256, 128)
+    step_feature: bool = False
+    step_scale: float = 50.0
+    pose_feature: bool = False
+    aux_widths: tuple[int, ...] = (64, 64)
+
+    @property
+    def aux_dim(self) -> int:
+        """Size of the raw low-dimensional input (0: none)."""
+        return (1 if self.step_feature else 0) + (7 if self.pose_feature else 0)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["head_widths"] = list(self.head_widths)
+        d["aux_widths"] = list(self.aux_widths)
         d["encoder"]["global_widths"] = list(self.encoder.global_widths)
         for lv in d["encoder"]["levels"]:
             lv["widths"] = list(lv["widths"])
@@ -68,6 +92,13 @@ class PolicyConfig:
             **({"levels": levels} if levels else {}),
         )
         head = tuple(int(w) for w in d.pop("head_widths", (256, 128)))
+        for key in ("step_feature", "pose_feature"):
+            if key in d:
+                d[key] = bool(d[key])
+        if "step_scale" in d:
+            d["step_scale"] = float(d["step_scale"])
+        if "aux_widths" in d:
+            d["aux_widths"] = tuple(int(w) for w in d["aux_widths"])
         return cls(encoder=encoder, head_widths=head, **d)
 
 
@@ -81,7 +112,9 @@ def _head(sizes: list[int]) -> nn.Sequential:
 
 
 class PolicyNet(nn.Module):
-    """``(dough (B, P, 3), tool (B, T, 3), goal (B, G, 3))`` -> ``(action (B, A) in [-1, 1], done logit (B,))``."""
+    """``(dough (B, P, 3), tool (B, T, 3), goal (B, G, 3)[, step (B,), pose (B, 7)])`` -> ``(action (B, A)
+    in [-1, 1], done logit (B,))``; ``step`` / ``pose`` are required when ``cfg.step_feature`` /
+    ``cfg.pose_feature`` is on, ignored otherwise."""
 
     def __init__(self, cfg: PolicyConfig | None = None) -> None:
         super().__init__()
@@ -89,7 +122,13 @@ class PolicyNet(nn.Module):
         if cfg.encoder.in_features != 3:
             raise ValueError("the policy's PointNet++ takes the 3-channel one-hot source feature")
         self.encoder = PointNet2(cfg.encoder)
-        widths = [cfg.encoder.out_dim, *cfg.head_widths]
+        aux = 0
+        if cfg.aux_dim:
+            self.aux = _head([cfg.aux_dim, *cfg.aux_widths])
+            if cfg.aux_widths:
+                self.aux.append(nn.ReLU())
+            aux = cfg.aux_widths[-1] if cfg.aux_widths else cfg.aux_dim
+        widths = [cfg.encoder.out_dim + aux, *cfg.head_widths]
         self.action_head = _head([*widths, cfg.action_dim])
         self.done_head = _head([*widths, 1])
         # Small last layers: the initial action is near 0 and the initial done probability near 1/2.
@@ -99,13 +138,31 @@ class PolicyNet(nn.Module):
             nn.init.uniform_(last.weight, -1e-3, 1e-3)
             nn.init.zeros_(last.bias)
 
-    def forward(self, dough: torch.Tensor, tool: torch.Tensor, goal: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def forward(self, dough: torch.Tensor, tool: torch.Tensor, goal: torch.Tensor,
+                step: torch.Tensor | None = None, pose: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         xyz = torch.cat([dough, tool, goal], 1)
-        if self.cfg.center_xz:
-            shift = dough.mean(1, keepdim=True) * xyz.new_tensor([1.0, 0.0, 1.0])
+        shift = dough.mean(1, keepdim=True) * xyz.new_tensor([1.0, 0.0, 1.0]) if self.cfg.center_xz else None
+        if shift is not None:
             xyz = xyz - shift
         sizes = (dough.shape[1], tool.shape[1], goal.shape[1])
         src = torch.cat([torch.full((n,), i, dtype=torch.long, device=xyz.device) for i, n in enumerate(sizes)])
         onehot = nn.functional.one_hot(src, 3).to(xyz.dtype).unsqueeze(0).expand(xyz.shape[0], -1, -1)
         h = self.encoder(xyz, onehot)
+        if self.cfg.aux_dim:
+            h = torch.cat([h, self.aux(self._aux_input(h, step, pose, shift))], -1)
         return torch.tanh(self.action_head(h)), self.done_head(h).squeeze(-1)
+
+    def _aux_input(self, h: torch.Tensor, step: torch.Tensor | None, pose: torch.Tensor | None,
+                   shift: torch.Tensor | None) -> torch.Tensor:
+        parts = []
+        if self.cfg.step_feature:
+            if step is None:
+                raise ValueError("this policy network takes the execution step (step_feature): pass step (B,)")
+            parts.append(step.to(h.dtype).reshape(-1, 1).expand(h.shape[0], 1) / self.cfg.step_scale)
+        if self.cfg.pose_feature:
+            if pose is None:
+                raise ValueError("this policy network takes the tool pose (pose_feature): pass pose (B, 7)")
+            pose = pose.to(h.dtype).reshape(-1, 7).expand(h.shape[0], 7)
+            pos = pose[:, :3] - (shift[:, 0] if shift is not None else 0.0)
+            parts += [pos * self.cfg.encoder.pos_scale, pose[:, 3:]]
+        return torch.cat(parts, -1)

@@ -43,6 +43,9 @@ class PolicyTrainConfig:
             one step in twenty with hindsight goals), and without it the done probability stays below 1/2.
         dough_points, tool_points, goal_points: points per source fed to the network.
         max_demos: use at most this many demonstrations (0 = all).
+        step_feature: the network also sees the step index within the execution
+            (:attr:`PolicyConfig.step_feature`; for skills whose phase one frame does not show).
+        pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`).
     """
 
     hindsight_ratio: float = 0.5
@@ -56,6 +59,8 @@ class PolicyTrainConfig:
     tool_points: int = 100
     goal_points: int = 512
     max_demos: int = 0
+    step_feature: bool = False
+    pose_feature: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.hindsight_ratio <= 1.0 or self.noise < 0 or not 0.0 <= self.val_fraction < 1.0:
@@ -65,7 +70,11 @@ class PolicyTrainConfig:
 
 
 def _to_torch(b: Batch) -> dict[str, torch.Tensor]:
-    return {k: torch.from_numpy(getattr(b, k)) for k in ("dough", "tool", "goal", "action", "done")}
+    out = {k: torch.from_numpy(getattr(b, k)) for k in ("dough", "tool", "goal", "action", "done")}
+    for k in ("step", "pose"):
+        if getattr(b, k) is not None:
+            out[k] = torch.from_numpy(getattr(b, k))
+    return out
 
 
 def _np_rng(generator: torch.Generator) -> np.random.Generator:
@@ -91,6 +100,8 @@ class PolicyTask:
         net_cfg = network or PolicyConfig()
         net_cfg.action_dim = train.action_dim
         net_cfg.dough_points, net_cfg.tool_points, net_cfg.goal_points = cfg.dough_points, cfg.tool_points, cfg.goal_points
+        net_cfg.step_feature = net_cfg.step_feature or cfg.step_feature
+        net_cfg.pose_feature = net_cfg.pose_feature or cfg.pose_feature
         torch.manual_seed(seed)
         self.model = PolicyNet(net_cfg)
         rng = np.random.default_rng(seed + 7919)
@@ -105,7 +116,7 @@ class PolicyTask:
             yield _to_torch(self.train_set.sample(rng.integers(0, len(self.train_set), batch_size), rng))
 
     def _losses(self, b: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        action, logit = self.model(b["dough"], b["tool"], b["goal"])
+        action, logit = self.model(b["dough"], b["tool"], b["goal"], b.get("step"), b.get("pose"))
         a_loss = (action - b["action"].clamp(-1, 1)).pow(2).sum(-1).mean()
         d_loss = torch.nn.functional.binary_cross_entropy_with_logits(
             logit, b["done"], pos_weight=logit.new_tensor(self.cfg.done_pos_weight))

@@ -1,0 +1,161 @@
+"""The policy's low-dimensional inputs (``step_feature``, ``pose_feature``) and the validation-side stopping-rule sweep."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from pasta.core.skill import SkillObservation
+from pasta.policy.dataset import DemoSet
+from pasta.policy.learned import LearnedPolicy
+from pasta.policy.network import PolicyConfig, PolicyNet
+from pasta.policy.pointnet2 import PointNet2Config, SAConfig
+from pasta.policy.select import select_rule, stop_index
+from pasta.policy.train import PolicyTrainConfig, train_policy
+from pasta.train.data import Demo
+
+TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
+
+
+def _frozen_demo(path, steps=8, points=40, seed=0):
+    """Every frame is the same (the phase is invisible); the action is +0.8 in the first half, -0.8 after
+    (like the cut's knife going down and up through the same heights)."""
+    rng = np.random.default_rng(seed)
+    blob = (np.array([0.5, 0.05, 0.5]) + rng.normal(0, 0.02, (points, 3))).astype(np.float32)
+    tool = (np.array([0.5, 0.12, 0.5]) + rng.normal(0, 0.01, (10, 3))).astype(np.float32)
+    action = np.where(np.arange(steps)[:, None] < steps // 2, 0.8, -0.8).astype(np.float32) * np.ones((1, 2), np.float32)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, dough=np.repeat(blob[None], steps + 1, 0), tool_points=np.repeat(tool[None], steps + 1, 0),
+             tool_pose=np.zeros((steps + 1, 7), np.float32), action=action, skill=np.array("push"),
+             params=np.array(json.dumps({"seed": seed})))
+    return blob, tool, action
+
+
+def test_old_configs_load_without_the_step_feature():
+    d = PolicyConfig(action_dim=2, **TINY).to_dict()
+    d.pop("step_feature")
+    d.pop("step_scale")
+    cfg = PolicyConfig.from_dict(d)
+    assert cfg.step_feature is False
+    on = PolicyConfig(action_dim=2, step_feature=True, step_scale=30.0, **TINY)
+    assert PolicyConfig.from_dict(on.to_dict()) == on
+
+
+def test_step_changes_the_output_only_with_the_feature():
+    torch.manual_seed(0)
+    dough, tool, goal = torch.rand(2, 30, 3) * 0.2, torch.rand(2, 10, 3) * 0.2, torch.rand(2, 30, 3) * 0.2
+    on = PolicyNet(PolicyConfig(action_dim=2, step_feature=True, **TINY)).eval()
+    with torch.no_grad():
+        on.action_head[-1].weight.normal_(0, 1.0)
+        a0, _ = on(dough, tool, goal, torch.zeros(2))
+        a1, _ = on(dough, tool, goal, torch.full((2,), 40.0))
+        assert not torch.allclose(a0, a1)
+        with pytest.raises(ValueError):
+            on(dough, tool, goal)
+    off = PolicyNet(PolicyConfig(action_dim=2, **TINY)).eval()
+    with torch.no_grad():
+        torch.testing.assert_close(off(dough, tool, goal, torch.zeros(2))[0], off(dough, tool, goal, torch.full((2,), 40.0))[0])
+
+
+def test_batches_carry_the_step_index():
+    steps = 6
+    dough = np.repeat(np.arange(steps + 1, dtype=np.float32)[:, None, None], 10, 1).repeat(3, 2)
+    pose = np.repeat(np.arange(steps + 1, dtype=np.float32)[:, None], 7, 1)
+    demo = Demo("push", 0, dough, np.zeros((steps + 1, 4, 3), np.float32), pose, np.zeros((steps, 2), np.float32))
+    ds = DemoSet([demo], dough_points=5, tool_points=2, goal_points=5, noise=0.0)
+    rng = np.random.default_rng(0)
+    b = ds.sample(rng.integers(0, len(ds), 50), rng)
+    np.testing.assert_array_equal(b.step, b.dough[:, 0, 0])  # dough[t] is filled with t
+    np.testing.assert_array_equal(b.pose, np.repeat(b.step[:, None], 7, 1))  # the tool pose of step t
+
+
+def test_step_feature_learns_an_action_one_frame_cannot_tell(tmp_path):
+    """Identical frames, opposite actions: with the step index the policy fits both halves, and the
+    controller feeds it the number of actions taken so far."""
+    from pasta.train.loop import LoopConfig
+
+    (tmp_path / "manifest.json").write_text(json.dumps({"skills": ["push"]}))
+    blob, tool, action = _frozen_demo(tmp_path / "push" / "demo_00000.npz")
+    cfg = PolicyTrainConfig(hindsight_ratio=0.0, noise=0.0, val_fraction=0.0, steps_per_epoch=25, val_batches=1,
+                            dough_points=32, tool_points=8, goal_points=32, step_feature=True)
+    loop = LoopConfig(epochs=12, batch_size=16, lr=3e-3, seed=0, progress=False)
+    policy, _ = train_policy("push", tmp_path, tmp_path / "out", cfg=cfg, loop=loop,
+                             network=PolicyConfig(step_scale=2.0, **TINY))
+    loaded = LearnedPolicy.load(tmp_path / "out", "push")
+    assert loaded.config.step_feature and loaded.config.step_scale == 2.0
+
+    class _Push:
+        name = "push"
+
+    ctl = loaded.controller(_Push())
+    obs = SkillObservation(piece=blob, goal=blob, tool_points=tool, tool_pose=np.zeros(7, np.float32))
+    ctl.reset(obs)
+    acts = np.stack([ctl.act(obs)[0] for _ in range(len(action))])
+    err = np.abs(acts - action)
+    assert err.max() < 0.5 and err.mean() < 0.25  # a one-frame policy: the same output for all steps, error 0.8
+
+
+def test_stop_index_follows_run_skill():
+    probs = [0.1, 0.6, 0.2, 0.9]
+    acts = [np.ones(2)] * 3 + [np.zeros(2)]
+    assert stop_index(probs, acts, 0.5, 1) == 2  # done with a non-zero action: applied, then stop
+    assert stop_index(probs, acts, 0.5, 3) == 3  # step 3 (index 3) fires with a zero action: not applied
+    assert stop_index(probs, acts, 0.95, 1) == 4  # never: the whole rollout
+    assert stop_index(probs, acts, 0.0, 1) == 1
+    assert stop_index(probs, acts, 0.95, 1, 2) == 2  # the cap: done at the 2nd action, which is applied
+    assert stop_index(probs, acts, 0.5, 1, 3) == 2  # the done head fires first
+
+
+def test_checkpoint_carries_its_stopping_rule(tmp_path):
+    from pasta.io.checkpoint import save_checkpoint
+    from pasta.policy.select import write_rule
+
+    torch.manual_seed(0)
+    net = PolicyNet(PolicyConfig(action_dim=2, dough_points=16, tool_points=8, goal_points=16, **TINY))
+    save_checkpoint(tmp_path, tensors=net.state_dict(), module="policy",
+                    config={"skill": "push", "tool": "pusher", "network": net.cfg.to_dict()})
+    plain = LearnedPolicy.load(tmp_path, "push")
+    assert (plain.done_threshold, plain.min_steps, plain.max_steps) == (0.5, 1, 0)
+    write_rule(tmp_path, {"done_threshold": 2.0, "min_steps": 1, "max_steps": 3})
+    policy = LearnedPolicy.load(tmp_path, "push")
+    assert (policy.done_threshold, policy.max_steps) == (2.0, 3)
+    assert LearnedPolicy.load(tmp_path, "push", max_steps=0).max_steps == 0  # an explicit argument wins
+
+    class _Push:
+        name = "push"
+
+    ctl = policy.controller(_Push())
+    obs = SkillObservation(piece=np.random.rand(40, 3).astype(np.float32), goal=np.random.rand(30, 3).astype(np.float32),
+                           tool_points=np.random.rand(5, 3).astype(np.float32), tool_pose=np.zeros(7, np.float32))
+    ctl.reset(obs)
+    assert [ctl.act(obs)[1] for _ in range(3)] == [False, False, True]  # threshold 2 never fires; the cap does
+
+
+def test_select_rule_takes_the_best_mean():
+    result = {"rules": [[0.3, 1, 0], [0.5, 1, 0], [0.7, 1, 60]], "ni": [[0.2, 0.9, 0.5], [0.4, 0.7, 0.8]]}
+    assert select_rule(result) == ((0.5, 1, 0), pytest.approx(0.8))
+
+
+def test_pose_feature_is_shifted_with_the_clouds_and_checked():
+    torch.manual_seed(0)
+    cfg = PolicyConfig(action_dim=2, pose_feature=True, step_feature=True, **TINY)
+    assert cfg.aux_dim == 8 and PolicyConfig.from_dict(cfg.to_dict()) == cfg
+    net = PolicyNet(cfg).eval()
+    dough, tool, goal = torch.rand(1, 30, 3) * 0.2, torch.rand(1, 10, 3) * 0.2, torch.rand(1, 30, 3) * 0.2
+    pose = torch.tensor([[0.1, 0.2, 0.1, 1.0, 0.0, 0.0, 0.0]])
+    move = torch.tensor([0.3, 0.0, -0.2])  # the whole scene shifted in x and z: the same relative input
+    with torch.no_grad():
+        net.action_head[-1].weight.normal_(0, 1.0)
+        a, d = net(dough, tool, goal, torch.zeros(1), pose)
+        a2, d2 = net(dough + move, tool + move, goal + move, torch.zeros(1), pose + torch.cat([move, torch.zeros(4)]))
+        torch.testing.assert_close(a2, a, rtol=1e-4, atol=1e-5)
+        a3, _ = net(dough, tool, goal, torch.zeros(1), pose + torch.tensor([0.0, 0.05, 0, 0, 0, 0, 0]))
+        assert not torch.allclose(a3, a)
+        with pytest.raises(ValueError):
+            net(dough, tool, goal, torch.zeros(1))
+    policy = LearnedPolicy(net, "push")
+    with pytest.raises(Exception):
+        policy.predict(dough.numpy(), tool.numpy(), goal.numpy(), np.zeros(1))
+    got, _ = policy.predict(dough.numpy(), tool.numpy(), goal.numpy(), np.zeros(1), pose.numpy())
+    np.testing.assert_allclose(got, a.numpy(), atol=1e-6)
