@@ -1,8 +1,9 @@
 """Print the results table of `pasta eval` summaries beside the paper's numbers (markdown).
 
-    python benchmarks/results_table.py [runs/eval]
+    python benchmarks/results_table.py [runs/eval] [--val]
 
-Reads every ``<task>_<method>[_h<H>].json`` that ``pasta eval`` wrote and prints one row per
+Reads every ``<task>_<method>[_h<H>].json`` that ``pasta eval`` wrote (test split; validation
+summaries, ``*_val.json``, only with ``--val``) and prints one row per
 (task, method) with the normalised improvement (mean +/- std), the success rate, the number of test
 configs and the mean planning / execution seconds per episode, next to the paper's figure where it
 reported one (PASTA, CoRL 2022, Table 1 and the planning times of Section 5).
@@ -28,11 +29,11 @@ TASKS = ("cut_rearrange", "crs", "crs_twice", "crs_distractors")
 METHODS = ("pasta", "sampling", "flat", "oracle")
 
 
-def rows(directory: Path) -> list[dict]:
+def rows(directory: Path, split: str = "test") -> list[dict]:
     out = []
     for path in sorted(directory.glob("*.json")):
         s = json.loads(path.read_text())
-        if "improvement_mean" in s:
+        if "improvement_mean" in s and s.get("split", "test") == split:
             s["name"] = path.stem
             out.append(s)
     order = {t: i for i, t in enumerate(TASKS)}
@@ -41,14 +42,19 @@ def rows(directory: Path) -> list[dict]:
 
 
 def main(argv: list[str]) -> int:
+    split = "val" if "--val" in argv else "test"
+    argv = [a for a in argv if a != "--val"]
     directory = Path(argv[0]) if argv else Path("runs/eval")
     print("| task | method | horizon | configs | normalised improvement | success | paper | plan s | execute s |")
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
-    for s in rows(directory):
+    for s in rows(directory, split):
         default_run = s["name"] == f"{s['task']}_{s['method']}"  # not a horizon sweep or learned-policy run
         paper = PAPER.get((s["task"], s["method"])) if default_run else None
         paper_txt = f"{paper[0]:.3f} / {100 * paper[1]:.0f}%" if paper else ""
         name = s["method"] + (" (learned)" if s.get("controller") == "learned" else "")
+        settings = s.get("planner_settings") or {}
+        if s["method"] != "oracle" and "clearance_weight" not in settings:
+            name += " (before clearance)"  # run before the clearance penalty and executor reorder existed
         print(f"| {s['task']} | {name} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
               f"{s['improvement_std']:.3f} | {100 * s['success_rate']:.0f}% | {paper_txt} | {s['plan_s_mean']:.1f} | "
               f"{s['execute_s_mean']:.1f} |")
