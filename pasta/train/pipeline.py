@@ -54,7 +54,13 @@ STAGE_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 #: pipeline defaults per stage and skill (over :data:`STAGE_DEFAULTS`, under every command-line key)
 SKILL_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
-    "feasibility": {"cut": {"stride": 3}, "push": {"stride": 4, "epochs": 20}, "roll": {"stride": 4, "epochs": 20}},
+    # roll: near-miss negatives (outputs shifted 3-10 cm from where the roll leaves the dough); chosen on
+    # the crs validation configs (docs/learning.md)
+    "feasibility": {"cut": {"stride": 3}, "push": {"stride": 4, "epochs": 20},
+                    "roll": {"stride": 4, "epochs": 20, "shift_per_positive": 5}},
+    # the shipped cut and roll policies see the execution step and the tool pose (docs/policies.md); their
+    # stopping rule is chosen afterwards on validation configs (python -m pasta.policy.select ... write=1)
+    "policy": {"cut": {"step_feature": True, "pose_feature": True}, "roll": {"step_feature": True, "pose_feature": True}},
 }
 #: the held-out figure reported for each stage (a key of its metrics.json)
 FIGURES = {"vae": "heldout_chamfer_mean", "feasibility": "heldout_auc_hard", "cost": "heldout_spearman",
