@@ -158,22 +158,26 @@ def equalise_density(clouds: Sequence[np.ndarray], num_points: int, *, voxel: fl
     return [np.asarray(c, np.float32)[np.arange(n) % len(c)] for c, n in zip(clouds, counts)]
 
 
-def persisting_outputs(plan: Plan, h: int) -> dict[int, int]:
-    """``{output j of step h: its index in the plan's final set}`` for the outputs no later step consumes."""
+def _origins(plan: Plan) -> list[list[tuple[int, int]]]:
+    """The set bookkeeping of ``plan``: for the set before each step and the final set, every entity as
+    ``(step that produced it, output index)`` (``-1`` and its index for an initial entity)."""
     ids: list[tuple[int, int]] = [(-1, i) for i in range(len(plan.initial))]
+    out = [ids]
     for k, step in enumerate(plan.steps):
         ids = [(k, j) for j in range(len(step.subgoal))] + [ids[i] for i in kept_indices(len(ids), step.inputs)]
-    return {j: pos for pos, (k, j) in enumerate(ids) if k == h}
+        out.append(ids)
+    return out
+
+
+def persisting_outputs(plan: Plan, h: int) -> dict[int, int]:
+    """``{output j of step h: its index in the plan's final set}`` for the outputs no later step consumes."""
+    return {j: pos for pos, (k, j) in enumerate(_origins(plan)[-1]) if k == h}
 
 
 def step_dependencies(plan: Plan) -> list[set[int]]:
     """Per plan step, the earlier steps whose produced entities it consumes (directly)."""
-    ids: list[tuple[int, int]] = [(-1, i) for i in range(len(plan.initial))]
-    deps = []
-    for k, step in enumerate(plan.steps):
-        deps.append({ids[i][0] for i in step.inputs if ids[i][0] >= 0})
-        ids = [(k, j) for j in range(len(step.subgoal))] + [ids[i] for i in kept_indices(len(ids), step.inputs)]
-    return deps
+    before = _origins(plan)
+    return [{before[h][i][0] for i in step.inputs if before[h][i][0] >= 0} for h, step in enumerate(plan.steps)]
 
 
 def sweep_risk(piece: np.ndarray, target: np.ndarray, others: np.ndarray, *, half_width: float = 0.0,
@@ -314,14 +318,16 @@ def execute_plan(
         deps = step_dependencies(current)
         ready = [j for j in range(len(current.steps)) if j not in executed and deps[j] <= executed]
         choice = None
-        for j in ready if cfg.reorder else ready[:1]:
+        for j in ready:
             attended, idx, subgoal = prepare(j, obs, labels)
+            if not cfg.reorder or len(ready) == 1:
+                return j, attended, idx, subgoal
             if choice is None:
                 choice = (j, attended, idx, subgoal)
             others = obs.dough[~np.isin(labels, attended)]
             target = np.concatenate(subgoal, 0)[:, [0, 2]].mean(0)
             width = float(getattr(skills[current.steps[j].skill], "sweep_half_width", 0.0))
-            if len(ready) == 1 or sweep_risk(obs.dough[idx], target, others, half_width=width) == 0:
+            if sweep_risk(obs.dough[idx], target, others, half_width=width) == 0:
                 return j, attended, idx, subgoal
         assert choice is not None
         return choice
