@@ -7,8 +7,9 @@ initial state with that goal cloud as its sub-goal, and is scored by the normali
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
 
-``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=cut,push,roll] [done_threshold=T] [min_steps=M] [max_steps=C] [out=FILE.json]``
-(the stopping rule: the checkpoint's own, ``config.controller``, unless given.)
+``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=cut,push,roll] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
+(the stopping rule: the checkpoint's own, ``config.controller``, unless given; a learned reset pose
+beside the policy, ``reset.*``, is used unless ``reset=0``, its step counter starting at ``start_step``.)
 (the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
 prints the table of docs/policies.md.
 """
@@ -170,9 +171,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         skill = get_plugins().skills.create(name)
         if "learned" in controllers:
             kw = {"done_threshold": float(args["done_threshold"])} if "done_threshold" in args else {}
-            for key in ("min_steps", "max_steps"):
+            for key in ("min_steps", "max_steps", "start_step"):
                 if key in args:
                     kw[key] = int(args[key])
+            if args.get("reset") in ("0", "false", "off"):
+                kw["reset"] = False  # ignore a learned reset pose beside the policy
             load_policy(models / POLICY_DIR / name, skill, **kw)
         max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
         results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed), controllers,

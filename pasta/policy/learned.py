@@ -40,14 +40,23 @@ class LearnedPolicy:
         max_steps: done at this many actions whatever the done head says (0: no limit of its own; the
             skill's step limit still applies).
         seed: seed of the point subsampling of each controller.
+        reset: optional learned reset pose (:class:`pasta.policy.reset.ResetPose`): the tool starts at
+            the piece centroid ``x`` plus its predicted offset (see :meth:`approach_pose`).
+        start_step: the step counter a controller starts from when it starts at the learned reset pose
+            (default: the regressor's own ``start_step``).
+
+    A checkpoint directory may also hold a reset-pose regressor ``DIR/reset.*``; :meth:`load` attaches it
+    unless ``reset=False``. Without one the policy starts from the skill's own approach pose, as before.
 
     A checkpoint may carry its stopping rule (selected on validation configs by
     :mod:`pasta.policy.select`) in ``config.controller``; :meth:`load` uses it unless overridden.
     """
 
     def __init__(self, net: PolicyNet, skill: str, *, done_threshold: float = 0.5, min_steps: int = 1,
-                 max_steps: int = 0, seed: int = 0) -> None:
+                 max_steps: int = 0, seed: int = 0, reset: Any = None, start_step: int | None = None) -> None:
         self.net = net.eval()
+        self.reset = reset
+        self.start_step = start_step
         self.skill = skill
         self.done_threshold = done_threshold
         self.min_steps = min_steps
@@ -69,13 +78,34 @@ class LearnedPolicy:
         net.load_state_dict(ckpt.tensors)
         rule = {k: v for k, v in dict(ckpt.config.get("controller") or {}).items()
                 if k in ("done_threshold", "min_steps", "max_steps")}
+        if kwargs.get("reset", True) is True:
+            from pasta.policy.reset import load_reset
+
+            kwargs["reset"] = load_reset(directory)
+        elif kwargs.get("reset") is False:
+            kwargs["reset"] = None
         return cls(net.to(device), ckpt.config["skill"], **{**rule, **kwargs})
 
     def controller(self, skill: Skill) -> PolicyController:
         """A fresh closed-loop controller for ``skill`` (must be the skill the policy was trained for)."""
         if skill.name != self.skill:
             raise InputError(f"policy trained for '{self.skill}' cannot drive skill '{skill.name}'")
-        return PolicyController(self)
+        return PolicyController(self, skill)
+
+    def approach_pose(self, skill: Skill, piece: np.ndarray, goal: np.ndarray | None,
+                      scene: np.ndarray | None = None) -> Any:
+        """The learned start pose of the tool: the skill's approach pose with ``x`` replaced by the piece
+        centroid ``x`` plus the regressor's offset; ``None`` without a regressor (or a goal)."""
+        if self.reset is None or goal is None:
+            return None
+        from pasta.core import ToolPose
+
+        try:
+            base = skill.approach_pose(piece, goal, scene=scene)
+        except TypeError:
+            base = skill.approach_pose(piece, goal)
+        x = float(np.asarray(piece, np.float64)[:, 0].mean()) + self.reset.offset(piece, goal)
+        return ToolPose((x, *base.position[1:]), base.yaw)
 
     @torch.no_grad()
     def predict(self, dough: np.ndarray, tool: np.ndarray, goal: np.ndarray,
@@ -102,15 +132,28 @@ class LearnedPolicy:
 class PolicyController(Controller):
     """Drives one execution of a skill with a :class:`LearnedPolicy`."""
 
-    def __init__(self, policy: LearnedPolicy) -> None:
+    def __init__(self, policy: LearnedPolicy, skill: Skill | None = None) -> None:
         self.policy = policy
+        self.skill = skill
         self.rng = np.random.default_rng(policy.seed)
         self.steps = 0
+        self.first_step = 0
         self.last_done_prob = 0.0
+
+    def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None, scene: np.ndarray | None = None) -> Any:
+        """The policy's learned start pose (:meth:`LearnedPolicy.approach_pose`) or ``None`` (then the
+        skill's own); starting there, the step counter starts at the policy's ``start_step``."""
+        pose = None if self.skill is None else self.policy.approach_pose(self.skill, piece, goal, scene)
+        if pose is None:
+            self.first_step = 0
+        else:
+            start = self.policy.start_step
+            self.first_step = int(self.policy.reset.start_step if start is None else start)
+        return pose
 
     def reset(self, obs: SkillObservation) -> None:
         self.rng = np.random.default_rng(self.policy.seed)
-        self.steps = 0
+        self.steps = self.first_step
 
     def _pick(self, cloud: np.ndarray, n: int, what: str) -> np.ndarray:
         cloud = np.asarray(cloud, np.float32)
@@ -126,9 +169,10 @@ class PolicyController(Controller):
         action, prob = self.policy.predict(dough[None], tool[None], goal[None], np.array([self.steps]),
                                             np.asarray(obs.tool_pose, np.float32).reshape(1, -1)[:, :7])
         self.steps += 1
+        taken = self.steps - self.first_step
         self.last_done_prob = float(prob[0])
-        done = self.steps >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold
-        done = done or 0 < self.policy.max_steps <= self.steps
+        done = taken >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold
+        done = done or 0 < self.policy.max_steps <= taken
         return action[0].astype(np.float32), bool(done)
 
 

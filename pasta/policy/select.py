@@ -62,6 +62,11 @@ class RecordingController(Controller):
         self.inner.reset(obs)
         self.states, self.probs, self.actions = [], [], []
 
+    def approach_pose(self, *args: Any, **kwargs: Any) -> Any:
+        """The wrapped controller's own start pose (a learned reset pose), if it has one."""
+        own = getattr(self.inner, "approach_pose", None)
+        return own(*args, **kwargs) if callable(own) else None
+
     def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
         self.states.append(self.sim.get_state())
         action, _ = self.inner.act(obs)
@@ -150,7 +155,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     sim_kw = json.loads(args["sim"]) if "sim" in args else {}
     sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
     skill = get_plugins().skills.create(name)
-    load_policy(models / POLICY_DIR / name, skill)
+    kw: dict[str, Any] = {"start_step": int(args["start_step"])} if "start_step" in args else {}
+    if args.get("reset") in ("0", "false", "off"):
+        kw["reset"] = False  # ignore a learned reset pose beside the policy
+    load_policy(models / POLICY_DIR / name, skill, **kw)
     max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
     # the skill's own limit, unless a cap is larger (then the cap is the limit)
     limit = max([max_steps or int(getattr(skill, "max_steps", 50)), *caps])

@@ -119,7 +119,9 @@ def run_skill(
         goal_points: ``(G, 3)`` sub-goal of the step (all produced pieces), or ``None`` (experts).
         max_steps: controller step limit (default: the skill's ``max_steps`` or 50).
         idle_steps: zero-action env steps after the controller stops (the dough settles).
-        approach: start pose of the tool (default: ``skill.approach_pose(piece, goal, scene=...)``).
+        approach: start pose of the tool (default: the controller's ``approach_pose(piece, goal, scene=...)``
+            when it has one and it returns a pose, e.g. a learned policy's reset pose, else
+            ``skill.approach_pose(piece, goal, scene=...)``).
         park: teleport the tool to ``skill.park_pose()`` at the end.
         record: keep the observations and actions (:class:`Trajectory`).
 
@@ -133,6 +135,9 @@ def run_skill(
     idx = piece_indices(piece, len(obs.dough))
     if max_steps is None:
         max_steps = int(getattr(skill, "max_steps", 50))
+    if approach is None and callable(getattr(controller, "approach_pose", None)):
+        # a controller with its own (learned) start pose; None falls back to the skill's
+        approach = controller.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)
     if approach is None:
         try:
             approach = skill.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)

@@ -9,7 +9,8 @@ Layout (the same as a ``pasta train ... out=MODELS`` root)::
     pasta/weights/flat/{vae,feasibility/<skill>,cost}/   the Flat 3D baseline
 
 Each directory holds ``model.safetensors`` + ``model.json`` (the loader's format, no pickle) and the
-``metrics.json`` that its trainer wrote (held-out quality figures and the training settings).
+``metrics.json`` that its trainer wrote (held-out quality figures and the training settings); a policy
+directory may also hold a learned reset pose, ``reset.safetensors`` + ``reset.json`` (``pasta.policy.reset``).
 :func:`bundle` copies a trained root here; ``pasta weights`` lists what is shipped.
 """
 
@@ -22,7 +23,7 @@ __all__ = ["ROOT", "bundle", "models_root", "shipped", "weight_overrides"]
 
 #: the directory of the shipped weights
 ROOT = Path(__file__).resolve().parent
-_FILES = ("model.safetensors", "model.json", "metrics.json")
+_FILES = ("model.safetensors", "model.json", "metrics.json", "reset.safetensors", "reset.json")
 
 
 def models_root(models: str | Path | None = None) -> Path:
@@ -47,8 +48,8 @@ def shipped(root: str | Path | None = None) -> list[str]:
 def bundle(source: str | Path, target: str | Path | None = None) -> list[str]:
     """Copy the final weights (not the resume checkpoints) of every module under ``source`` into ``target``.
 
-    Returns the module directories copied (those whose trainer finished, i.e. wrote ``metrics.json``). Only ``model.safetensors``, ``model.json`` and ``metrics.json``
-    are copied; ``last.*`` (optimiser state for resuming) stays behind.
+    Returns the module directories copied (those whose trainer finished, i.e. wrote ``metrics.json``). Only ``model.*``, ``metrics.json`` and a policy's
+    ``reset.*`` are copied; ``last.*`` (optimiser state for resuming) stays behind.
     """
     source, target = Path(source), Path(target) if target is not None else ROOT
     copied = []

@@ -1,0 +1,113 @@
+"""The learned reset (start) pose: the regressor fits a tiny set, it round-trips through a checkpoint
+beside the policy, and a policy directory without one loads and starts as before."""
+
+import numpy as np
+import torch
+
+from pasta.core import ToolPose
+from pasta.core.skill import SkillObservation
+from pasta.io.checkpoint import save_checkpoint
+from pasta.policy.learned import LearnedPolicy, PolicyController
+from pasta.policy.network import PolicyConfig, PolicyNet
+from pasta.policy.pointnet2 import PointNet2Config, SAConfig
+from pasta.policy.reset import MODULE, NAME, ResetConfig, align_offset, load_reset, train_reset
+from pasta.train.data import Demo
+
+TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
+
+
+def _cut_demo(i, rng, points=60):
+    """A bar; the goal is the bar split at a random x (left part moved left); the knife aligns to the
+    split in ``k`` x-steps, then descends."""
+    x0 = rng.uniform(0.4, 0.6)
+    bar = np.c_[rng.uniform(x0 - 0.1, x0 + 0.1, points), rng.uniform(0, 0.04, points), rng.uniform(0.45, 0.55, points)]
+    cut = x0 + rng.uniform(-0.05, 0.05)
+    goal = bar.copy()
+    goal[goal[:, 0] < cut, 0] -= 0.05
+    k = int(rng.integers(1, 3))
+    pose = np.zeros((k + 3, 7), np.float32)
+    pose[:, 0] = np.r_[np.linspace(bar[:, 0].mean(), cut, k + 1), [cut, cut]]
+    action = np.zeros((k + 2, 2), np.float32)
+    action[:k, 0] = 0.5
+    action[k:, 1] = -1.0
+    dough = np.repeat(bar[None].astype(np.float32), k + 3, 0)
+    dough[-1] = goal
+    return Demo("cut", i, dough, np.zeros((k + 3, 5, 3), np.float32), pose, action), cut - bar[:, 0].mean()
+
+
+def test_align_offset_is_the_first_vertical_step():
+    demo, off = _cut_demo(0, np.random.default_rng(0))
+    got, k = align_offset(demo)
+    assert np.isclose(got, off, atol=1e-5)
+    assert demo.action[k, 1] != 0 and not np.any(demo.action[:k, 1])
+
+
+def test_regressor_overfits_a_tiny_set(tmp_path):
+    rng = np.random.default_rng(0)
+    demos = [_cut_demo(i, rng)[0] for i in range(6)]
+    cfg = ResetConfig(points=32, widths=[32, 64], head=[64], start_step=2)
+    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0)
+    assert metrics["heldout_mae_m"] < 0.004, metrics  # targets spread over +-0.05 m
+    save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
+    reset = load_reset(tmp_path)
+    assert reset.start_step == 2
+    d = demos[0]
+    assert abs(reset.offset(d.dough[0], d.after) - align_offset(d)[0]) < 0.01
+
+
+class _Skill:
+    name = "cut"
+
+    def approach_pose(self, piece, goal=None, scene=None):
+        c = np.asarray(piece).mean(0)
+        return ToolPose((float(c[0]), 0.3, float(c[2])), 0.0)
+
+
+class _Reset:
+    start_step = 3
+
+    def offset(self, piece, goal):
+        return 0.02
+
+
+def _policy_dir(tmp_path):
+    torch.manual_seed(0)
+    net = PolicyNet(PolicyConfig(action_dim=2, dough_points=16, tool_points=5, goal_points=16, step_feature=True, **TINY))
+    save_checkpoint(tmp_path, module="policy", tensors=net.state_dict(),
+                    config={"skill": "cut", "tool": "knife", "network": net.cfg.to_dict()})
+    return net
+
+
+def test_policy_without_reset_head_loads_and_starts_as_before(tmp_path):
+    _policy_dir(tmp_path)
+    policy = LearnedPolicy.load(tmp_path, "cut")
+    assert policy.reset is None
+    ctl = policy.controller(_Skill())
+    piece = np.random.default_rng(0).uniform(0.4, 0.6, (30, 3)).astype(np.float32)
+    assert ctl.approach_pose(piece, piece) is None  # run_skill falls back to the skill's approach pose
+    obs = SkillObservation(piece=piece, goal=piece, tool_points=np.zeros((5, 3), np.float32),
+                           tool_pose=np.r_[0.5, 0.3, 0.5, 1, 0, 0, 0].astype(np.float32))
+    ctl.reset(obs)
+    assert ctl.steps == 0
+
+
+def test_reset_head_moves_the_start_pose_and_the_step_counter(tmp_path):
+    _policy_dir(tmp_path)
+    policy = LearnedPolicy.load(tmp_path, "cut")
+    policy.reset = _Reset()
+    ctl = policy.controller(_Skill())
+    assert isinstance(ctl, PolicyController)
+    piece = np.random.default_rng(0).uniform(0.4, 0.6, (30, 3)).astype(np.float32)
+    pose = ctl.approach_pose(piece, piece)
+    assert np.isclose(pose.position[0], piece[:, 0].mean() + 0.02, atol=1e-6)
+    assert pose.position[1] == 0.3
+    obs = SkillObservation(piece=piece, goal=piece, tool_points=np.zeros((5, 3), np.float32),
+                           tool_pose=np.r_[pose.position, 1, 0, 0, 0].astype(np.float32))
+    ctl.reset(obs)
+    assert ctl.steps == 3
+    policy.max_steps, policy.done_threshold = 2, 1.0  # the limit counts actions actually taken
+    assert not ctl.act(obs)[1] and ctl.act(obs)[1]
+    policy.start_step = 0  # an explicit override
+    ctl.approach_pose(piece, piece)
+    ctl.reset(obs)
+    assert ctl.steps == 0
