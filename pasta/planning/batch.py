@@ -225,10 +225,9 @@ def roll_states(batch: CandidateBatch, latents: Sequence[torch.Tensor], clearanc
             u_in = _take(state, grp.inputs[h])
             steps.append((u_in, new))
             if clearance is not None:
-                p, e_new = clearance.step_penalty(u_in, _take(ext, grp.inputs[h]), new, _take(state, grp.kept[h]),
-                                                  _take(ext, grp.kept[h]), widths[grp.seq, h])
+                p, ext = clearance.step_penalty(u_in, _take(ext, grp.inputs[h]), new, _take(state, grp.kept[h]),
+                                                _take(ext, grp.kept[h]), widths[grp.seq, h])
                 penalty = penalty + p
-                ext = torch.cat([e_new, _take(ext, grp.kept[h])], 1)
             state = torch.cat([new, _take(state, grp.kept[h])], 1)
         tuples.append(steps)
         finals.append(state)

@@ -80,6 +80,7 @@ class Clearance:
         new_extent: ``(2,)`` half extents assumed for produced entities (the goal entities' largest).
         margin: metres added to every pair's summed half extents. Decoded shapes are thinner than the
             dough (our VAE's by about 0.01-0.03 m across the push direction) and pushed dough spreads.
+        sweep: skill name -> its tool's :attr:`~pasta.core.Skill.sweep_half_width`.
     """
 
     z_dim: int
@@ -112,7 +113,7 @@ class Clearance:
 
     def step_penalty(self, u_in: torch.Tensor, e_in: torch.Tensor, u_out: torch.Tensor, u_kept: torch.Tensor,
                      e_kept: torch.Tensor, sweep: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """Penalty of one step and the extents of its produced entities.
+        """Penalty of one step and the extents of the set after it (produced entities first, as the state).
 
         Args:
             u_in: ``(B, N, D)`` consumed latents, ``e_in (B, N, 2)`` their extents.
@@ -122,7 +123,7 @@ class Clearance:
                 this wide on the way; the extents passed on are the pieces' own).
 
         Returns:
-            ``(penalty (B,), produced extents (B, M, 2))``.
+            ``(penalty (B,), extents of [produced, untouched] (B, M + K - N, 2))``.
         """
         b, m = u_out.shape[0], u_out.shape[1]
         if u_in.shape[1] == 1 and m == 1:
@@ -131,4 +132,5 @@ class Clearance:
             e_out = self.new_extent.to(u_out.dtype).expand(b, m, 2)
         start = self.floor(u_in).mean(1)
         e_move = e_out if sweep is None else torch.maximum(e_out, sweep.to(e_out.dtype)[:, None, None])
-        return path_penalty(start, self.floor(u_out), e_move, self.floor(u_kept), e_kept, self.margin), e_out
+        penalty = path_penalty(start, self.floor(u_out), e_move, self.floor(u_kept), e_kept, self.margin)
+        return penalty, torch.cat([e_out, e_kept], 1)

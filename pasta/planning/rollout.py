@@ -60,13 +60,12 @@ def rollout(
     penalty = state.new_zeros(batch)
     ext = clearance.start_extent.to(state.dtype).unsqueeze(0).expand(batch, -1, -1) if clearance is not None else None
     for name, inputs, new in zip(skeleton, attention, subgoals):
-        kept = list(kept_indices(state.shape[1], inputs))
-        feas.append(skills[name].feasibility(state[:, list(inputs)], new))
+        inputs, kept = list(inputs), list(kept_indices(state.shape[1], inputs))
+        feas.append(skills[name].feasibility(state[:, inputs], new))
         if clearance is not None:
             sweep = state.new_full((batch,), clearance.sweep.get(name, 0.0))
-            p, e_new = clearance.step_penalty(state[:, list(inputs)], ext[:, list(inputs)], new, state[:, kept], ext[:, kept], sweep)
+            p, ext = clearance.step_penalty(state[:, inputs], ext[:, inputs], new, state[:, kept], ext[:, kept], sweep)
             penalty = penalty + p
-            ext = torch.cat([e_new, ext[:, kept]], 1)
         state = torch.cat([new, state[:, kept]], 1)
         states.append(state)
     goal = problem.goal.unsqueeze(0).expand(batch, -1, -1)
