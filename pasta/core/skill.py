@@ -112,6 +112,9 @@ class Skill:
     #: half width (metres) of the band the tool sweeps across its motion when it moves a piece; the
     #: planner's clearance check (pasta.planning.clearance) widens a moved piece to at least this
     sweep_half_width: ClassVar[float] = 0.0
+    #: the skill (1 -> 1) leaves its piece's horizontal centroid about where it was (a roll spreads the
+    #: piece where it lies): the executor then aims an earlier step at the goal piece's place directly
+    keeps_position: ClassVar[bool] = False
 
     def __init__(self, config: Any = None) -> None:
         if not isinstance(getattr(type(self), "spec", None), SkillSpec):

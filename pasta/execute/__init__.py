@@ -7,13 +7,15 @@ from pasta.execute.executor import (
     ExecuteConfig,
     ExecutionResult,
     StepInfo,
+    anchor_xz,
     attend,
     decode_entities,
     equalise_density,
     execute_plan,
+    goal_descendants,
     match_goal_pieces,
-    persisting_outputs,
+    step_goal,
 )
 
-__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "equalise_density", "execute_plan",
-           "match_goal_pieces", "persisting_outputs"]
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "anchor_xz", "attend", "decode_entities", "equalise_density",
+           "execute_plan", "goal_descendants", "match_goal_pieces", "step_goal"]

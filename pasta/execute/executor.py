@@ -36,8 +36,8 @@ from pasta.core.metrics import chamfer, emd, normalized_improvement
 from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.skill import Controller, Skill
 
-__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "attend", "decode_entities", "equalise_density", "execute_plan",
-           "match_goal_pieces", "persisting_outputs", "step_dependencies", "sweep_risk"]
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "anchor_xz", "attend", "decode_entities", "equalise_density",
+           "execute_plan", "goal_descendants", "match_goal_pieces", "step_dependencies", "step_goal", "sweep_risk"]
 
 
 @dataclass
@@ -59,6 +59,14 @@ class ExecuteConfig:
             the planner matched to the goal: give the controller that observed goal piece (matched by
             centroid) instead of the entity's decoding. Decodings blur thin pieces (a rolled sheet decodes
             about twice as thick), and the goal is known exactly.
+        goal_mass: when every output of a step becomes goal pieces (through later steps that each take
+            one entity, so keep its mass: cut, push, roll), resample the step's goal pieces to point
+            counts proportional to those goal pieces' point counts, not to decoded volumes: the
+            observation is a fixed particle subset, so counts are masses, and the cut controller reads
+            its split from them.
+        goal_anchor: aim an output that only steps of skills with :attr:`~pasta.core.Skill.keeps_position`
+            follow (a piece pushed and then rolled) at its goal piece's place: its decoding is moved so
+            its horizontal centroid is the goal piece's.
         retries: run a step again (from the new observation, same sub-goal) when it visibly failed: the
             controller hit its step limit without reporting done, or fewer pieces are observed than the
             skill produces (a cut whose bottom layer still joins the halves). 0 disables.
@@ -78,6 +86,8 @@ class ExecuteConfig:
     skip_threshold: float = 0.0
     closed_loop: bool = False
     goal_pieces: bool = True
+    goal_mass: bool = True
+    goal_anchor: bool = True
     retries: int = 1
     reorder: bool = True
     emd_points: int = 500
@@ -145,15 +155,23 @@ def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points
     return [np.asarray(c, np.float32) for c in out]
 
 
-def equalise_density(clouds: Sequence[np.ndarray], num_points: int, *, voxel: float = 1.0 / 64) -> list[np.ndarray]:
+def equalise_density(clouds: Sequence[np.ndarray], num_points: int, *, voxel: float = 1.0 / 64,
+                     masses: Sequence[float] | None = None) -> list[np.ndarray]:
     """Resample ``clouds`` (each ``(N_i, 3)``) to point counts proportional to their volumes.
 
-    The largest (by occupied ``voxel`` cells) gets ``num_points`` points; points are taken in order
-    (a decoder's Sobol template stays well spread) and repeated cyclically when a cloud has too few.
+    The largest (by occupied ``voxel`` cells, or by ``masses`` when given: one per cloud, e.g. the point
+    counts of the goal pieces they become) gets ``num_points`` points; points are taken in order (a
+    decoder's Sobol template stays well spread) and repeated cyclically when a cloud has too few.
     """
     if len(clouds) < 2:
         return [np.asarray(c, np.float32) for c in clouds]
-    volumes = np.array([len(np.unique(np.floor(np.asarray(c) / voxel).astype(np.int64), axis=0)) for c in clouds], np.float64)
+    if masses is not None:
+        if len(masses) != len(clouds) or min(masses) <= 0:
+            raise InputError(f"equalise_density: need one positive mass per cloud, got {list(masses)} for {len(clouds)} clouds")
+        volumes = np.asarray(masses, np.float64)
+    else:
+        volumes = np.array([len(np.unique(np.floor(np.asarray(c) / voxel).astype(np.int64), axis=0)) for c in clouds],
+                           np.float64)
     counts = np.maximum(1, np.round(num_points * volumes / volumes.max())).astype(int)
     return [np.asarray(c, np.float32)[np.arange(n) % len(c)] for c, n in zip(clouds, counts)]
 
@@ -169,9 +187,31 @@ def _origins(plan: Plan) -> list[list[tuple[int, int]]]:
     return out
 
 
-def persisting_outputs(plan: Plan, h: int) -> dict[int, int]:
-    """``{output j of step h: its index in the plan's final set}`` for the outputs no later step consumes."""
-    return {j: pos for pos, (k, j) in enumerate(_origins(plan)[-1]) if k == h}
+def goal_descendants(plan: Plan, h: int) -> dict[int, tuple[tuple[int, ...], tuple[str, ...]]]:
+    """``{output j of step h: (indices in the final set it becomes, skills of the later steps on the way)}``.
+
+    Follows what output ``j`` becomes through the later steps that consume it or its parts, as long as
+    each of them takes a single entity (a cut splits it, a push or roll moves or shapes it; none adds
+    another entity's dough). Empty skills: ``j`` itself persists. Outputs that a later many-entity step
+    consumes (a merge) are left out.
+    """
+    before = _origins(plan)
+    final = {ent: pos for pos, ent in enumerate(before[-1])}
+    out: dict[int, tuple[tuple[int, ...], tuple[str, ...]]] = {}
+    for j in range(len(plan.steps[h].subgoal)):
+        parts, chain = {(h, j)}, []
+        for k in range(h + 1, len(plan.steps)):
+            step = plan.steps[k]
+            consumed = {before[k][i] for i in step.inputs} & parts
+            if not consumed:
+                continue
+            if len(step.inputs) != 1:
+                break
+            parts = (parts - consumed) | {(k, m) for m in range(len(step.subgoal))}
+            chain.append(step.skill)
+        else:
+            out[j] = (tuple(sorted(final[e] for e in parts)), tuple(chain))
+    return out
 
 
 def step_dependencies(plan: Plan) -> list[set[int]]:
@@ -201,6 +241,14 @@ def sweep_risk(piece: np.ndarray, target: np.ndarray, others: np.ndarray, *, hal
     q = np.asarray(others, np.float64)[:, [0, 2]] - c
     s, lat = q @ u, np.abs(q @ n)
     return int(np.count_nonzero((s > 0) & (s < length + front + margin) & (lat < width)))
+
+
+def anchor_xz(cloud: np.ndarray, piece: np.ndarray) -> np.ndarray:
+    """``cloud (N, 3)`` moved horizontally so that its x, z centroid is that of ``piece (M, 3)``."""
+    cloud = np.asarray(cloud, np.float32).copy()
+    shift = np.asarray(piece, np.float64)[:, [0, 2]].mean(0) - cloud[:, [0, 2]].astype(np.float64).mean(0)
+    cloud[:, [0, 2]] += shift.astype(np.float32)
+    return cloud
 
 
 def match_goal_pieces(final: Sequence[Sequence[float]], goal: np.ndarray, labels: np.ndarray, z_dim: int) -> dict[int, np.ndarray]:
@@ -242,6 +290,34 @@ def attend(labels: np.ndarray, points: np.ndarray, step: PlanStep, planned_befor
             raise InputError(f"step '{step.skill}' needs {len(step.inputs)} pieces but only {k} are observed")
         chosen.append(int(np.argmin(d)))
     return tuple(chosen)
+
+
+def step_goal(plan: Plan, j: int, encoder: Any, cfg: ExecuteConfig, *, skills: Mapping[str, Skill],
+              goal: np.ndarray | None = None, goal_labels: np.ndarray | None = None) -> list[np.ndarray]:
+    """The controller's goal pieces for step ``j`` of ``plan``: one cloud ``(N_k, 3)`` per produced entity.
+
+    Each sub-goal latent is decoded; with the task's ``goal (G, 3)`` and its entity labels ``(G,)``
+    (``cfg.goal_pieces``), the plan's final entities are matched to the goal pieces and an output that
+    persists takes its goal piece, one that only :attr:`~pasta.core.Skill.keeps_position` steps follow is
+    moved onto its goal piece's place (``cfg.goal_anchor``), and when every output becomes goal pieces
+    (:func:`goal_descendants`) the point counts follow those pieces' masses (``cfg.goal_mass``);
+    otherwise decoded volumes (:func:`equalise_density`).
+    """
+    subgoal = decode_entities(encoder, plan.steps[j].subgoal, cfg.decode_points)
+    masses: dict[int, float] = {}  # output -> point count of the goal piece it becomes
+    if goal is not None and goal_labels is not None:
+        matched = match_goal_pieces(plan.steps[-1].state, goal, goal_labels, encoder.z_dim)
+        for k, (positions, chain) in goal_descendants(plan, j).items():
+            if not all(pos in matched for pos in positions):
+                continue
+            masses[k] = float(sum(len(matched[pos]) for pos in positions))  # a cut or roll keeps the mass
+            if not chain:
+                subgoal[k] = matched[positions[0]]
+            elif (cfg.goal_anchor and len(positions) == 1
+                  and all(getattr(skills[s], "keeps_position", False) for s in chain)):
+                subgoal[k] = anchor_xz(subgoal[k], matched[positions[0]])
+    exact = cfg.goal_mass and len(masses) == len(subgoal)
+    return equalise_density(subgoal, cfg.decode_points, masses=[masses[k] for k in range(len(subgoal))] if exact else None)
 
 
 def _controller(skill: Skill, kind: str) -> Controller:
@@ -304,13 +380,8 @@ def execute_plan(
         step = current.steps[j]
         before = current.initial if j == 0 else current.steps[j - 1].state
         attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=j == 0 and not executed)
-        subgoal = decode_entities(encoder, step.subgoal, cfg.decode_points)
-        if goal_pieces is not None:
-            matched = match_goal_pieces(current.steps[-1].state, goal, goal_pieces, encoder.z_dim)
-            for k, pos in persisting_outputs(current, j).items():
-                if pos in matched:
-                    subgoal[k] = matched[pos]
-        return attended, np.flatnonzero(np.isin(labels, attended)), equalise_density(subgoal, cfg.decode_points)
+        subgoal = step_goal(current, j, encoder, cfg, skills=skills, goal=goal, goal_labels=goal_pieces)
+        return attended, np.flatnonzero(np.isin(labels, attended)), subgoal
 
     def pick(obs: Any, labels: np.ndarray) -> tuple[int, tuple[int, ...], np.ndarray, list[np.ndarray]]:
         """The next plan step to run: plan order, unless it would sweep through another piece and a later

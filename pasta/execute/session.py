@@ -75,6 +75,7 @@ class Session:
         return {"task": self.task.name, "method": self.method, "planner": getattr(self.cfg.planner, "name", None),
                 "planner_settings": planner,
                 "controller": "heuristic" if self.method == "oracle" else self.exe.controller,
+                "execute_settings": dataclasses.asdict(self.exe),
                 "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton}
 
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:

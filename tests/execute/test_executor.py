@@ -98,18 +98,49 @@ def test_decoded_goal_keeps_observation_density_by_volume():
     assert len(big) == 2000 and np.array_equal(big[500:1000], big[:500])
 
 
-def test_persisting_outputs_follow_the_set_bookkeeping():
+def test_goal_descendants_follow_single_entity_steps():
     from pasta.core.plan import Plan
-    from pasta.execute import persisting_outputs
+    from pasta.execute import goal_descendants
 
     lat = lambda k: [[float(i)] * 2 for i in range(k)]  # noqa: E731
-    # crs-like: cut 0 -> (a, b); push a (index 0); roll it (index 0). Final set: [rolled, b]
-    steps = [PlanStep("cut", (0,), lat(2), 1.0, lat(2)), PlanStep("push", (0,), lat(1), 1.0, lat(2)),
-             PlanStep("roll", (0,), lat(1), 1.0, lat(2))]
-    plan = Plan(steps=tuple(steps), initial=lat(1), goal=lat(2), final_cost=0.0, score=1.0, planner="t", seed=0)
-    assert persisting_outputs(plan, 0) == {1: 1}
-    assert persisting_outputs(plan, 1) == {}
-    assert persisting_outputs(plan, 2) == {0: 0}
+    plan = lambda steps, k: Plan(steps=tuple(steps), initial=lat(1), goal=lat(k), final_cost=0.0, score=1.0,  # noqa: E731
+                                 planner="t", seed=0)
+    # crs: cut 0 -> (a, b); push a; roll it. Final set: [rolled, b]
+    crs = plan([PlanStep("cut", (0,), lat(2), 1.0, lat(2)), PlanStep("push", (0,), lat(1), 1.0, lat(2)),
+                PlanStep("roll", (0,), lat(1), 1.0, lat(2))], 2)
+    assert goal_descendants(crs, 0) == {0: ((0,), ("push", "roll")), 1: ((1,), ())}
+    assert goal_descendants(crs, 1) == {0: ((0,), ("roll",))}
+    assert goal_descendants(crs, 2) == {0: ((0,), ())}
+    # cut twice: the first cut's left part is cut again into the final set's first two entities
+    twice = plan([PlanStep("cut", (0,), lat(2), 1.0, lat(2)), PlanStep("cut", (0,), lat(2), 1.0, lat(3))], 3)
+    assert goal_descendants(twice, 0) == {0: ((0, 1), ("cut",)), 1: ((2,), ())}
+    assert goal_descendants(twice, 1) == {0: ((0,), ()), 1: ((1,), ())}
+    # a merge adds another entity's dough: what goes into it has no goal pieces of its own
+    merge = plan([PlanStep("cut", (0,), lat(2), 1.0, lat(2)), PlanStep("merge", (0, 1), lat(1), 1.0, lat(1))], 1)
+    assert goal_descendants(merge, 0) == {}
+    assert goal_descendants(merge, 1) == {0: ((0,), ())}
+
+
+def test_anchor_moves_a_cloud_to_its_goal_piece_horizontally():
+    from pasta.execute import anchor_xz
+
+    cloud = np.random.default_rng(0).uniform(0, 0.1, (50, 3)).astype(np.float32)
+    piece = cloud[:20] + np.array([0.3, 0.2, -0.1], np.float32)
+    moved = anchor_xz(cloud, piece)
+    np.testing.assert_allclose(moved[:, [0, 2]].mean(0), piece[:, [0, 2]].mean(0), atol=1e-6)
+    np.testing.assert_array_equal(moved[:, 1], cloud[:, 1])  # heights kept
+    np.testing.assert_allclose(moved - moved.mean(0), cloud - cloud.mean(0), atol=1e-6)  # shape kept
+
+
+def test_goal_masses_set_the_point_counts():
+    from pasta.core.errors import InputError
+    from pasta.execute import decode_entities, equalise_density
+
+    same = decode_entities(_TwoBoxDecoder(), np.array([[0.3, 0.0], [0.1, 0.0]], np.float32), 1000)
+    a, b = equalise_density(same, 1000, masses=[200, 600])  # masses, not the decoded volumes
+    assert (len(a), len(b)) == (333, 1000)
+    with pytest.raises(InputError, match="one positive mass per cloud"):
+        equalise_density(same, 1000, masses=[1.0])
 
 
 def test_goal_pieces_are_matched_by_centroid():
@@ -183,3 +214,67 @@ def test_sweep_risk_sees_pieces_in_the_way_and_the_tool_band():
     assert sweep_risk(piece, target, box(0.5, 0.6)) == 0  # beside the path, clear of the piece
     assert sweep_risk(piece, target, box(0.5, 0.6), half_width=0.1) > 0  # but in the pusher paddle's band
     assert sweep_risk(piece, np.array([0.8, 0.5]), box(0.5, 0.5)) == 0  # no motion, no sweep
+
+
+class _BoxEncoder:
+    """Latent ``(length, cx, cy, cz)`` (``z_dim`` 1) -> a box of that x-length around that centroid."""
+
+    z_dim = 1
+
+    def decode(self, latents, num_points):
+        rng = np.random.default_rng(0)
+        out = [(rng.uniform(-0.5, 0.5, (num_points, 3)) * np.array([u[0], 0.04, 0.08]) + u[1:4]) for u in np.asarray(latents)]
+        return torch.as_tensor(np.stack(out), dtype=torch.float32)
+
+
+def test_step_goal_uses_goal_pieces_their_places_and_masses():
+    from types import SimpleNamespace
+
+    from pasta.core.plan import Plan
+    from pasta.execute import step_goal
+
+    skills = {"cut": SimpleNamespace(keeps_position=False), "push": SimpleNamespace(keeps_position=False),
+              "roll": SimpleNamespace(keeps_position=True)}
+    a, b = [0.1, 0.3, 0.04, 0.5], [0.1, 0.7, 0.04, 0.5]
+    pushed, rolled = [0.1, 0.2, 0.04, 0.6], [0.2, 0.22, 0.02, 0.6]
+    steps = [PlanStep("cut", (0,), [a, b], 1.0, [a, b]), PlanStep("push", (0,), [pushed], 1.0, [pushed, b]),
+             PlanStep("roll", (0,), [rolled], 1.0, [rolled, b])]
+    plan = Plan(steps=tuple(steps), initial=[[0.2, 0.5, 0.04, 0.5]], goal=[rolled, b], final_cost=0.0, score=1.0,
+                planner="t", seed=0)
+    rng = np.random.default_rng(1)
+    goal_a = (rng.uniform(-0.1, 0.1, (300, 3)) + [0.25, 0.02, 0.55]).astype(np.float32)  # the rolled piece's goal
+    goal_b = (rng.uniform(-0.03, 0.03, (600, 3)) + [0.7, 0.04, 0.5]).astype(np.float32)
+    goal, labels = np.concatenate([goal_a, goal_b]), np.repeat([0, 1], [300, 600])
+    cfg = ExecuteConfig(decode_points=1000)
+
+    cut_a, cut_b = step_goal(plan, 0, _BoxEncoder(), cfg, skills=skills, goal=goal, goal_labels=labels)
+    assert (len(cut_a), len(cut_b)) == (500, 1000)  # masses 300 : 600, not the equal decoded volumes
+    np.testing.assert_array_equal(cut_b[:600], goal_b)  # b persists: its goal piece itself
+    assert cut_a[:, 0].mean() == pytest.approx(0.3, abs=0.01)  # pushed later: stays where the plan cuts it
+    (push,) = step_goal(plan, 1, _BoxEncoder(), cfg, skills=skills, goal=goal, goal_labels=labels)
+    np.testing.assert_allclose(push[:, [0, 2]].mean(0), goal_a[:, [0, 2]].mean(0), atol=1e-5)  # only rolled next: anchored
+
+    plain = ExecuteConfig(decode_points=1000, goal_anchor=False, goal_mass=False)
+    (push,) = step_goal(plan, 1, _BoxEncoder(), plain, skills=skills, goal=goal, goal_labels=labels)
+    np.testing.assert_allclose(push[:, [0, 2]].mean(0), [0.2, 0.6], atol=0.01)  # the decoding's place
+    cut_a, cut_b = step_goal(plan, 0, _BoxEncoder(), plain, skills=skills, goal=goal, goal_labels=labels)
+    assert len(cut_a) == 1000 and len(cut_b) < 1000  # decoded volumes: b's goal piece is the smaller box
+
+
+def test_step_goal_masses_add_up_over_a_later_cut():
+    from types import SimpleNamespace
+
+    from pasta.core.plan import Plan
+    from pasta.execute import step_goal
+
+    skills = {"cut": SimpleNamespace(keeps_position=False)}
+    a, b, a1, a2 = [0.2, 0.3, 0.04, 0.5], [0.1, 0.7, 0.04, 0.5], [0.1, 0.2, 0.04, 0.5], [0.1, 0.4, 0.04, 0.5]
+    steps = [PlanStep("cut", (0,), [a, b], 1.0, [a, b]), PlanStep("cut", (0,), [a1, a2], 1.0, [a1, a2, b])]
+    plan = Plan(steps=tuple(steps), initial=[[0.4, 0.5, 0.04, 0.5]], goal=[a1, a2, b], final_cost=0.0, score=1.0,
+                planner="t", seed=0)
+    rng = np.random.default_rng(2)
+    pieces = [(rng.uniform(-0.02, 0.02, (n, 3)) + [x, 0.04, 0.5]).astype(np.float32) for n, x in ((100, 0.2), (200, 0.4), (600, 0.7))]
+    goal, labels = np.concatenate(pieces), np.repeat([0, 1, 2], [100, 200, 600])
+    first, second = step_goal(plan, 0, _BoxEncoder(), ExecuteConfig(decode_points=1000), skills=skills, goal=goal,
+                              goal_labels=labels)
+    assert (len(first), len(second)) == (500, 1000)  # (100 + 200) : 600

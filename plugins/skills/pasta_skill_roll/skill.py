@@ -136,6 +136,7 @@ class RollSkill(Skill):
     """roll one dough piece flat with the roller (1 -> 1 entities, tool: roller)."""
 
     spec = SPEC
+    keeps_position = True  # the heuristic rolls between the piece's ends, inside the goal's span
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation", "confine_to_goal",
                                          "end_tolerance", "goal_inset")
