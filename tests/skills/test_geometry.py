@@ -89,6 +89,27 @@ def test_cut_expert_aligns_descends_reenters_and_separates(skills):
     assert cut.config.max_steps >= len(actions)
 
 
+def test_cut_heuristic_separates_at_least_min_travel(skills):
+    from pasta.sim.tools import TOOL_ACTION_SCALES
+    from pasta_skill_cut.skill import CutSkill
+
+    piece = box((0.75, FLOOR + 0.04, 0.5), (0.3, 0.08, 0.07), n=3000, seed=3)
+    left, right = piece[piece[:, 0] < 0.68], piece[piece[:, 0] >= 0.68]
+    goal = np.concatenate([left - [0.01, 0, 0], right])  # the moved part's goal is only 1 cm away
+
+    def lowest_knife_x(skill):
+        start = skill.approach_pose(piece, goal).position
+        # the kinematic stand-in never moves dough, so the heuristic's final fix of the other part runs on
+        actions, _, _ = drive(skill.controller(), piece, goal, start, "knife", max_steps=250)
+        return start[0] + np.cumsum([a[0] for a in actions]).min() * TOOL_ACTION_SCALES["knife"][0]
+
+    cut = skills["cut"]
+    knife = plan_from_goal(piece, goal, cut.config).cut_x
+    assert cut.config.min_travel == pytest.approx(cut.config.shift_min)
+    assert lowest_knife_x(cut) <= knife - cut.config.min_travel + cut.config.tolerance
+    assert lowest_knife_x(CutSkill(CutConfig(min_travel=0.0))) > knife - 0.04  # the goal alone: a short slide
+
+
 def test_cut_heuristic_needs_two_goal_pieces(skills):
     ctrl = skills["cut"].controller()
     with pytest.raises(InputError):

@@ -25,6 +25,10 @@ class CutConfig:
         slow_distance: the knife slows down linearly over this last distance of the separation.
         slide_allowance: the heuristic stops the knife this far before the moved part's centroid target
             (the part slides on a little).
+        min_travel: heuristic: the knife separates at least this far from where it cut, even when the
+            moved part already sits at its goal centroid (the descent can squeeze it there); less leaves
+            the parts closer than perception's DBSCAN radius, one piece to every later step. The
+            expert's smallest travel, ``shift_min``.
         fix_tolerance: heuristic: the part that stayed is pushed to its goal centroid when it is farther
             off than this.
         fix_far_side: heuristic: also fix it when that needs the knife on its far side.
@@ -53,6 +57,7 @@ class CutConfig:
     separate_speed: float = 0.3
     slow_distance: float = 0.02
     slide_allowance: float = 0.008
+    min_travel: float = 0.06
     fix_tolerance: float = 0.006
     fix_far_side: bool = True
     tolerance: float = 0.002

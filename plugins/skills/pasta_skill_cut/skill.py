@@ -14,7 +14,8 @@ every cut is a plane ``x = const``. One execution has three phases:
 The scripted expert gets the cut position and the knife travel as explicit parameters; the heuristic
 controller infers them from point clouds alone: the cut position is the quantile of the piece's ``x``
 at the goal's left-piece point fraction (point counts are volumes, whatever the shapes), and it
-separates until the moved part's centroid ``x`` reaches that of its goal piece.
+separates until the moved part's centroid ``x`` reaches that of its goal piece (and the knife has moved at
+least ``min_travel``).
 """
 
 from __future__ import annotations
@@ -195,6 +196,9 @@ class CutController(Controller):
                 return np.zeros(2, np.float32), True
             remaining = (plan.centroid_target - moved[:, 0].mean()) * plan.direction
             allowance = cfg.slide_allowance
+            # travel at least min_travel: parts that barely separate are seen as one piece afterwards
+            travel_left = cfg.min_travel - (x - plan.cut_x) * plan.direction
+            remaining = max(remaining, travel_left + allowance)
         if remaining <= cfg.tolerance + allowance:
             if plan.other_target is None:
                 self.phase = "done"
@@ -278,7 +282,7 @@ class CutSkill(Skill):
 
     spec = SPEC
     #: config fields only the heuristic controller reads (left out of task cache keys)
-    heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "fix_tolerance", "fix_far_side",
+    heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "min_travel", "fix_tolerance", "fix_far_side",
                                          "grid_dx", "plane_offset", "plane_slope", "stay_end_offset", "stay_end_slope")
 
     def __init__(self, config: CutConfig | None = None) -> None:
