@@ -22,7 +22,8 @@ DEMO_ARGS ?=
 demo: $(STAMP)
 	$(PY) -m pasta run task=crs seed=1000 log=out/demo/run.mcap summary=out/demo/summary.png $(DEMO_ARGS)
 
-# Retrain every module (demos -> vae -> feasibility -> cost -> policies); resumable. See `pasta pipeline --help`.
+# Retrain every module (demos -> vae -> feasibility -> cost -> policies -> cut reset pose -> stopping rules);
+# resumable. See `pasta pipeline --help`.
 TRAIN_ARGS ?=
 
 train: $(STAMP)

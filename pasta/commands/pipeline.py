@@ -6,7 +6,8 @@ import argparse
 import sys
 
 HELP = ("generate the demonstrations and train every learned module in one resumable run "
-        "(demos -> vae -> feasibility -> cost -> policy; done units are skipped, interrupted ones resume)")
+        "(demos -> vae -> feasibility -> cost -> policy -> reset -> select; done units are skipped, "
+        "interrupted ones resume)")
 
 EPILOG = """arguments (key=value):
   data=data/demos        dataset directory (written by demos, read by the training stages)
@@ -14,16 +15,19 @@ EPILOG = """arguments (key=value):
   num_demos=200          demonstrations per skill (same as demos.num)
   wide_push_demos=150    long push demonstrations added after the push ones (demos/push-wide; 0: none)
   workers=2              demo generation processes (same as demos.workers)
-  stages=demos,vae,feasibility,cost,policy
+  stages=demos,vae,feasibility,cost,policy,reset,select
                          stages to run, in this order whatever the order given
-  skills=cut,push,roll   skills of the per-skill stages (demos, feasibility, policy)
+  skills=cut,push,roll   skills of the per-skill stages (demos, feasibility, policy, reset, select)
+  reset_skills=cut       policies that get a learned reset (start) pose (stage reset)
+  select_skills=cut,roll policies whose stopping rule is chosen on validation configs (stage select)
   only=UNIT[,UNIT]       run these units only: a unit (feasibility/cut) or a whole stage (cost)
   force=true             rerun the selected units even when done (demonstrations are never deleted)
   progress=false         hide the inner progress bars
   <stage>.<key>=value    a setting of every unit of a stage, e.g. vae.epochs=5, policy.batch_size=16
   <stage>.<skill>.<key>=value
                          a setting of one skill's unit, e.g. feasibility.push.epochs=30
-  The keys are those of `pasta demos` and `pasta train <stage>` (see docs/learning.md); a typo is
+  The keys are those of `pasta demos`, `pasta train <stage>` (see docs/learning.md),
+  `python -m pasta.policy.reset` and `python -m pasta.policy.select` (docs/policies.md); a typo is
   reported with the closest valid key before anything runs.
 
 units and defaults (sized for a 2-core CPU; the settings the shipped models were trained with):
@@ -34,16 +38,27 @@ units and defaults (sized for a 2-core CPU; the settings the shipped models were
                          push and roll stride=4 epochs=20                   -> OUT/feasibility/<skill>
   cost                   stride=5 threads=1 (epochs 60)                     -> OUT/cost
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
-  vae and cost train on every skill found in data; feasibility and cost use OUT/vae.
+                         cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true
+  reset/cut              python -m pasta.policy.reset epochs=45 start_step=0 points=1000 threads=1
+                                                                -> OUT/policy/cut/reset.* (+ reset_metrics.json)
+  select/<skill>         python -m pasta.policy.select n=20 seed=2000 write=1 threads=1 (validation
+                         configs; the rule goes into OUT/policy/<skill>/model.json, the per-config
+                         results into select.json); cut thresholds=0.3,...,0.7
+                         max_steps=0,40,45,50,55,60,65,70,80,100; roll thresholds=0.3,...,0.8
+                         min_steps=1,20 max_steps=0,60
+  vae and cost train on every skill found in data; feasibility and cost use OUT/vae; reset and select
+  run after every policy unit (a cut rule is chosen with the cut's reset pose in place).
 
 resuming:
-  A unit is done when its metrics.json exists and OUT/pipeline.json says it was produced with the
-  same settings (trainer config, dataset path and demo counts, and for feasibility and cost the VAE
-  weights): it is skipped. A unit stopped half-way resumes from its last.* checkpoint. A unit with
-  other settings (or no record) starts afresh; a retrained VAE reruns feasibility and cost, more
-  demonstrations rerun the units that read them. progress, threads, resume and workers never
-  cause a rerun. Each unit prints a line when it starts and one when it ends (wall time and its
-  held-out figure); a table sums up at the end.
+  A unit is done when its metrics.json (reset: reset_metrics.json, select: select.json and the rule
+  still in model.json) exists and OUT/pipeline.json says it was produced with the same settings
+  (trainer config, dataset path and demo counts, for feasibility and cost the VAE weights, for select
+  the policy and reset weights): it is skipped. A unit stopped half-way resumes from its last.*
+  checkpoint (select: at the first config it had not scored; reset restarts, a few minutes). A unit
+  with other settings (or no record) starts afresh; a retrained VAE reruns feasibility and cost, a
+  retrained policy its select unit, more demonstrations rerun the units that read them. progress,
+  threads, resume and workers never cause a rerun. Each unit prints a line when it starts and one
+  when it ends (wall time and its held-out figure); a table sums up at the end.
 
 examples:
   pasta pipeline                                         # everything, defaults (hours on 2 cores)
@@ -51,6 +66,7 @@ examples:
   pasta pipeline stages=vae,feasibility,cost             # retrain from existing demonstrations
   pasta pipeline only=feasibility/cut feasibility.epochs=40   # one unit, with more epochs
   pasta pipeline stages=policy skills=cut,roll policy.epochs=20
+  pasta pipeline stages=select select.n=10              # re-choose the stopping rules (cut and roll)
   pasta pipeline force=true only=cost                    # retrain the cost model even if done
   make train                                             # the same as `pasta pipeline`"""
 

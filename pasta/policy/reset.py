@@ -10,8 +10,9 @@ with its step counter at ``start_step`` (stored in the checkpoint, chosen on val
 
 Checkpoint: ``DIR/reset.safetensors`` + ``DIR/reset.json`` (module ``"reset_pose"``) beside the policy's
 ``DIR/model.*``. Train with
-``python -m pasta.policy.reset data=data/demos skill=cut out=DIR [epochs=300] [seed=0] [start_step=1]``
-(held-out error in ``DIR/reset_metrics.json``).
+``python -m pasta.policy.reset data=data/demos skill=cut out=DIR [epochs=300] [seed=0] [start_step=1] [threads=1]``
+(any :class:`ResetTrainConfig` key; held-out error in ``DIR/reset_metrics.json``), or in ``pasta pipeline``
+(stage ``reset``: epochs 45, start_step 0, the shipped settings).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ import numpy as np
 import torch
 from torch import nn
 
-__all__ = ["MODULE", "ResetConfig", "ResetPoseNet", "align_offset", "load_reset", "reset_inputs", "train_reset"]
+__all__ = ["MODULE", "ResetConfig", "ResetPoseNet", "ResetTrainConfig", "align_offset", "load_reset", "reset_command",
+           "reset_inputs", "train_reset"]
 
 #: checkpoint module (and file) name of a reset-pose regressor
 MODULE = "reset_pose"
@@ -37,13 +39,15 @@ NAME = "reset"
 @dataclass
 class ResetConfig:
     """Sizes of :class:`ResetPoseNet`; ``scale``: metres per unit of the regressed offset;
-    ``start_step``: the policy's step counter when it starts from the predicted pose."""
+    ``start_step``: the policy's step counter when it starts from the predicted pose; ``draws``: at
+    inference, the offset is the mean over this many seeded point subsamples (1: one, as trained)."""
 
     points: int = 512
     widths: list[int] = field(default_factory=lambda: [64, 128, 256])
     head: list[int] = field(default_factory=lambda: [256, 64])
     scale: float = 0.05
     start_step: int = 1
+    draws: int = 1
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
@@ -114,8 +118,10 @@ class ResetPose:
 
     @torch.no_grad()
     def offset(self, piece: np.ndarray, goal: np.ndarray) -> float:
-        pts, _ = reset_inputs(piece, goal, self.net.cfg.points, np.random.default_rng(self.seed))
-        return float(self.net(torch.as_tensor(pts[None]))[0])
+        """The predicted offset; the mean over ``cfg.draws`` subsamples (seeds ``seed``, ``seed + 1``, ...)."""
+        draws = max(1, int(self.net.cfg.draws))
+        pts = [reset_inputs(piece, goal, self.net.cfg.points, np.random.default_rng(self.seed + i))[0] for i in range(draws)]
+        return float(self.net(torch.as_tensor(np.stack(pts))).mean())
 
 
 def load_reset(directory: str | Path) -> ResetPose | None:
@@ -193,22 +199,66 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
     return net, metrics
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
-    torch.set_num_threads(int(args.get("threads", 1)))
+@dataclass
+class ResetTrainConfig:
+    """Settings of :func:`reset_command` (``python -m pasta.policy.reset`` and the pipeline's ``reset`` stage).
+
+    Attributes:
+        epochs: passes over the training demonstrations (the shipped regressor: 45).
+        batch_size, lr, noise: optimiser batch, Adam learning rate (cosine-annealed), point noise half-width.
+        seed: seed of the split, the initialisation and the batches.
+        val_fraction: share of demonstrations held out (split by demonstration; the best epoch is kept).
+        start_step: the policy's step counter when it starts at the predicted pose (stored in ``reset.json``).
+        points: points of the dough and of the goal fed to the regressor (each).
+        draws: at inference, average the offset over this many point subsamples (stored in ``reset.json``).
+        threads: torch CPU threads (0: leave as is).
+        progress: print the held-out error every 20 epochs (stderr).
+    """
+
+    epochs: int = 300
+    batch_size: int = 32
+    lr: float = 1e-3
+    noise: float = 0.002
+    seed: int = 0
+    val_fraction: float = 0.1
+    start_step: int = 1
+    points: int = 512
+    draws: int = 1
+    threads: int = 1
+    progress: bool = True
+
+
+def reset_command(data: str | Path, out: str | Path, skill: str = "cut",
+                  overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """Train the reset-pose regressor of ``skill`` on the demonstrations in ``data`` and write it to
+    ``out/reset.*`` (beside the policy's ``model.*``) with ``out/reset_metrics.json``; return the metrics.
+    ``overrides``: :class:`ResetTrainConfig` keys (a typo fails with the closest valid key)."""
+    from pasta.config.overrides import build
     from pasta.io.checkpoint import save_checkpoint
     from pasta.train.data import load_demos, split_by_demo
 
-    skill, seed = args.get("skill", "cut"), int(args.get("seed", 0))
-    demos = load_demos(args.get("data", "data/demos"), [skill])
-    train, val = split_by_demo(demos, val_fraction=float(args.get("val_fraction", 0.1)), seed=seed)
-    cfg = ResetConfig(start_step=int(args.get("start_step", 1)))
-    net, metrics = train_reset(train, val, cfg, epochs=int(args.get("epochs", 300)), seed=seed, log=True)
-    out = Path(args["out"])
+    from pasta.train.loop import torch_threads
+
+    cfg = build(ResetTrainConfig, dict(overrides or {}), command="python -m pasta.policy.reset")
+    demos = load_demos(data, [skill])
+    train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=cfg.seed)
+    net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws)
+    with torch_threads(cfg.threads):
+        net, metrics = train_reset(train, val, net_cfg, epochs=cfg.epochs, batch_size=cfg.batch_size, lr=cfg.lr,
+                                   noise=cfg.noise, seed=cfg.seed, log=cfg.progress)
+    out = Path(out)
     save_checkpoint(out, module=MODULE, name=NAME, tensors=net.state_dict(),
-                    config={"skill": skill, "network": asdict(cfg)}, state=metrics)
-    metrics = {"module": MODULE, "skill": skill, "data": args.get("data", "data/demos"), **metrics}
+                    config={"skill": skill, "network": asdict(net_cfg)}, state=metrics)
+    metrics = {"module": MODULE, "skill": skill, "data": str(data), "start_step": cfg.start_step, **metrics}
     (out / "reset_metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    return metrics
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    data, skill = args.pop("data", "data/demos"), args.pop("skill", "cut")
+    out = args.pop("out")
+    metrics = reset_command(data, out, skill, args)
     print(json.dumps(metrics, indent=2))
     return 0
 

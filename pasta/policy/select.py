@@ -13,6 +13,10 @@ the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.policy.eval
 
     python -m pasta.policy.select models=models skill=roll n=20 seed=2000 \\
            [thresholds=0.3,0.4,0.5,0.6,0.7] [min_steps=1] [max_steps=0,60,80] [out=FILE.json] [write=1]
+           [start_step=S] [reset=0] [learned_max_steps=N] [threads=1]
+
+(any :class:`SelectConfig` key; ``pasta pipeline`` runs it as its ``select`` stage for the cut and roll
+policies, ``write=1``, the result in ``OUT/policy/<skill>/select.json``.)
 
 (``max_steps`` 0: no cap of the policy's own, only the skill's step limit; ``write=1`` stores the selected
 rule in the checkpoint's ``model.json`` under ``config.controller``, which
@@ -24,15 +28,18 @@ from __future__ import annotations
 import json
 import sys
 from collections.abc import Sequence
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pasta.core import Controller, SkillObservation
+from pasta.core.errors import ConfigError
 from pasta.core.metrics import emd, normalized_improvement
 
-__all__ = ["RecordingController", "select_rule", "stop_index", "sweep", "write_rule"]
+__all__ = ["RecordingController", "SelectConfig", "grid_table", "select_command", "select_rule", "stop_index", "sweep",
+           "write_rule"]
 
 
 def stop_index(probs: Sequence[float], actions: Sequence[np.ndarray], threshold: float, min_steps: int,
@@ -135,48 +142,178 @@ def write_rule(directory: str | Path, rule: dict[str, Any]) -> None:
     path.write_text(json.dumps(doc, indent=2) + "\n")
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    import torch
+@dataclass
+class SelectConfig:
+    """Settings of :func:`select_command` (``python -m pasta.policy.select`` and the pipeline's ``select`` stage).
 
-    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
-    models = Path(args.get("models", "models"))
-    name = args.get("skill", "roll")
-    n, seed = int(args.get("n", 20)), int(args.get("seed", 2000))
-    thresholds = [float(v) for v in args.get("thresholds", "0.3,0.4,0.5,0.6,0.7").split(",") if v]
-    min_steps = [int(v) for v in args.get("min_steps", "1").split(",") if v]
-    caps = [int(v) for v in args.get("max_steps", "0").split(",") if v]
-    torch.set_num_threads(int(args.get("threads", 1)))
+    Attributes:
+        n: validation configs.
+        seed: base seed of their stream (2000: validation; never the test stream 1000).
+        thresholds: comma-separated done thresholds to try.
+        min_steps: comma-separated ``min_steps`` values.
+        max_steps: comma-separated caps on the policy's own actions (0: none).
+        start_step: the step counter at a learned reset pose (-1: the regressor's own ``start_step``).
+        reset: use a learned reset pose beside the policy (``reset.*``) when there is one.
+        learned_max_steps: step limit of the rollout (0: the skill's own, or the largest cap if larger).
+        n_particles, obs_points: simulator particles and observed points (``pasta demos``'s 5,000 and 1,000).
+        n_grid, max_particles: the simulator's grid and particle capacity (64 and 10,000, as ``pasta demos``).
+        write: store the selected rule in the checkpoint's ``model.json`` (``config.controller``).
+        threads: torch CPU threads (0: leave as is).
+        progress: print a line per config (stderr).
+    """
+
+    n: int = 20
+    seed: int = 2000
+    thresholds: str = "0.3,0.4,0.5,0.6,0.7"
+    min_steps: str = "1"
+    max_steps: str = "0"
+    start_step: int = -1
+    reset: bool = True
+    learned_max_steps: int = 0
+    n_particles: int = 5000
+    obs_points: int = 1000
+    n_grid: int = 64
+    max_particles: int = 10000
+    write: bool = False
+    threads: int = 1
+    progress: bool = True
+
+    def grid(self) -> tuple[list[float], list[int], list[int]]:
+        """The thresholds, ``min_steps`` and caps as lists."""
+        try:
+            out = ([float(v) for v in str(self.thresholds).split(",") if v.strip()],
+                   [int(v) for v in str(self.min_steps).split(",") if v.strip()],
+                   [int(v) for v in str(self.max_steps).split(",") if v.strip()])
+        except ValueError as exc:
+            raise ConfigError(f"thresholds, min_steps and max_steps must be comma-separated numbers: {exc}") from None
+        if not all(out):
+            raise ConfigError("thresholds, min_steps and max_steps must each name at least one value")
+        return out
+
+
+#: per-config rows of an unfinished :func:`select_command` (JSON lines), removed when it finishes
+PARTIAL = "select.partial.jsonl"
+#: the result of :func:`select_command` in the policy directory
+RESULT = "select.json"
+
+
+def select_command(models: str | Path, skill: str, overrides: dict[str, Any] | None = None, *,
+                   out: str | Path | None = None, sim: Any = None, resume: bool = True) -> dict[str, Any]:
+    """Score every stopping rule of the grid on the validation configs and pick the best (see the module
+    docstring); the policy is ``models/policy/<skill>``.
+
+    Writes ``out`` when given (the pipeline: ``models/policy/<skill>/select.json``; the grid, per-config
+    normalised improvement and steps, the selected rule) and, with ``write``, the rule into
+    ``model.json``. With ``out``, each config's row is appended to ``select.partial.jsonl`` beside it as
+    soon as it is scored, so an interrupted run resumes at the next config (``resume=False`` starts
+    over); returns the result.
+    ``sim``: a simulator to use (default: a new one with ``n_particles`` / ``obs_points``).
+    """
+    from pasta.config.overrides import build
+    from pasta.train.loop import torch_threads
+
+    cfg = build(SelectConfig, dict(overrides or {}), command="python -m pasta.policy.select")
+    with torch_threads(cfg.threads):
+        return _select(models, skill, cfg, out=out, sim=sim, resume=resume)
+
+
+def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Path | None, sim: Any,
+            resume: bool) -> dict[str, Any]:
     from pasta.plugins import get_plugins
     from pasta.policy import POLICY_DIR
     from pasta.policy.evaluate import make_configs
     from pasta.policy.learned import load_policy
-    from pasta.sim import SimConfig, Simulator
 
-    sim_kw = json.loads(args["sim"]) if "sim" in args else {}
-    sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
-    skill = get_plugins().skills.create(name)
-    kw: dict[str, Any] = {"start_step": int(args["start_step"])} if "start_step" in args else {}
-    if args.get("reset") in ("0", "false", "off"):
-        kw["reset"] = False  # ignore a learned reset pose beside the policy
-    load_policy(models / POLICY_DIR / name, skill, **kw)
-    max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
-    # the skill's own limit, unless a cap is larger (then the cap is the limit)
-    limit = max([max_steps or int(getattr(skill, "max_steps", 50)), *caps])
-    result = sweep(sim, skill, make_configs(skill, sim, n, seed), thresholds, min_steps, caps, max_steps=limit)
-    means = np.asarray(result["ni"]).mean(0)
-    print(f"| {name}: max_steps, min_steps \\ done_threshold | " + " | ".join(f"{t:g}" for t in thresholds) + " |")
-    print("|---" * (len(thresholds) + 1) + "|")
-    for j in range(len(means) // len(thresholds)):
-        _, m, c = result["rules"][j * len(thresholds)]
-        print(f"| {c or '-'}, {m} | " + " | ".join(f"{means[j * len(thresholds) + i]:.3f}" for i in range(len(thresholds))) + " |")
+    thresholds, min_steps, caps = cfg.grid()
+    directory = Path(models) / POLICY_DIR / skill
+    out = Path(out) if out is not None else None
+    if sim is None:
+        from pasta.sim import SimConfig, Simulator
+
+        sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points, n_grid=cfg.n_grid,
+                                  max_particles=max(cfg.max_particles, cfg.n_particles)))
+    sk = get_plugins().skills.create(skill)
+    kw: dict[str, Any] = {"start_step": cfg.start_step} if cfg.start_step >= 0 else {}
+    if not cfg.reset:
+        kw["reset"] = False
+    load_policy(directory, sk, **kw)
+    limit = max([cfg.learned_max_steps or int(getattr(sk, "max_steps", 50)), *caps])
+    configs = make_configs(sk, sim, cfg.n, cfg.seed)
+    partial = out.with_name(PARTIAL) if out is not None else None
+    key = {"skill": skill, "config": {k: v for k, v in asdict(cfg).items() if k not in ("threads", "progress", "write")}}
+    rows = _read_partial(partial, key) if resume and partial is not None else []
+    if partial is not None and not rows:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        partial.write_text(json.dumps({"key": key}) + "\n")
+    elif rows and cfg.progress:
+        print(f"  {skill}: resuming after {len(rows)} of {cfg.n} configs ({partial})", file=sys.stderr, flush=True)
+    for c in configs[len(rows):]:
+        res = sweep(sim, sk, [c], thresholds, min_steps, caps, max_steps=limit, verbose=cfg.progress)
+        row = {"seed": c.seed, "ni": res["ni"][0], "steps": res["steps"][0]}
+        if partial is not None:
+            with partial.open("a") as f:
+                f.write(json.dumps(row) + "\n")
+        rows.append(row)
+    rules = [[float(t), int(m), int(c)] for c in caps for m in min_steps for t in thresholds]
+    result = {"rules": rules, "ni": [r["ni"] for r in rows], "steps": [r["steps"] for r in rows]}
     (t, m, c), best = select_rule(result)
     rule = {"done_threshold": t, "min_steps": m, "max_steps": c}
-    print(f"selected on seed={seed}: done_threshold={t:g} min_steps={m} max_steps={c} (mean NI {best:.3f})")
-    if "out" in args:
-        Path(args["out"]).write_text(json.dumps({"skill": name, "seed": seed, "n": n, "models": str(models),
-                                                 "selected": {**rule, "mean_ni": best}, **result}, indent=1) + "\n")
-    if args.get("write", "0") not in ("0", "false", ""):
-        write_rule(models / POLICY_DIR / name, rule)
+    doc = {"skill": skill, "seed": cfg.seed, "n": cfg.n, "models": str(models), "settings": key["config"],
+           "selected": {**rule, "mean_ni": best}, **result}
+    if out is not None:
+        out.write_text(json.dumps(doc, indent=1) + "\n")
+        partial.unlink(missing_ok=True)
+    if cfg.write:
+        write_rule(directory, rule)
+    return doc
+
+
+def _read_partial(path: Path, key: dict[str, Any]) -> list[dict[str, Any]]:
+    """The rows of an unfinished run with the same settings (none when the file is missing or stale)."""
+    try:
+        lines = path.read_text().splitlines()
+        if not lines or json.loads(lines[0]).get("key") != json.loads(json.dumps(key)):
+            return []
+        return [json.loads(line) for line in lines[1:] if line.strip()]
+    except (OSError, json.JSONDecodeError, AttributeError):
+        return []
+
+
+def grid_table(doc: dict[str, Any]) -> str:
+    """Markdown table of the mean normalised improvement of every rule in a :func:`select_command` result."""
+    rules, means = doc["rules"], np.asarray(doc["ni"]).mean(0)
+    thresholds = list(dict.fromkeys(r[0] for r in rules))
+    lines = [f"| {doc['skill']}: max_steps, min_steps \\ done_threshold | " + " | ".join(f"{t:g}" for t in thresholds) + " |",
+             "|---" * (len(thresholds) + 1) + "|"]
+    for j in range(len(means) // len(thresholds)):
+        _, m, c = rules[j * len(thresholds)]
+        lines.append(f"| {c or '-'}, {m} | " + " | ".join(f"{means[j * len(thresholds) + i]:.3f}" for i in range(len(thresholds))) + " |")
+    return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    models = Path(args.pop("models", "models"))
+    name = args.pop("skill", "roll")
+    out = args.pop("out", None)
+    sim_kw = json.loads(args.pop("sim")) if "sim" in args else None
+    sim = None
+    if sim_kw is not None:
+        from pasta.sim import SimConfig, Simulator
+
+        sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
+    if "reset" in args:
+        args["reset"] = "false" if args["reset"] in ("0", "false", "off") else "true"
+    if "write" in args:
+        args["write"] = "false" if args["write"] in ("0", "false", "") else "true"
+    doc = select_command(models, name, args, out=out, sim=sim)
+    print(grid_table(doc))
+    sel = doc["selected"]
+    print(f"selected on seed={doc['seed']}: done_threshold={sel['done_threshold']:g} min_steps={sel['min_steps']} "
+          f"max_steps={sel['max_steps']} (mean NI {sel['mean_ni']:.3f})")
+    if args.get("write") == "true":
+        from pasta.policy import POLICY_DIR
+
         print(f"wrote the rule to {models / POLICY_DIR / name / 'model.json'} (config.controller)")
     return 0
 

@@ -25,7 +25,7 @@ from pasta.policy.dataset import Batch, DemoSet
 from pasta.policy.learned import MODULE, LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
 
-__all__ = ["PolicyTask", "PolicyTrainConfig", "train_policy"]
+__all__ = ["PolicyTask", "PolicyTrainConfig", "from_reset_pose", "train_policy"]
 
 
 @dataclass
@@ -46,6 +46,10 @@ class PolicyTrainConfig:
         step_feature: the network also sees the step index within the execution
             (:attr:`PolicyConfig.step_feature`; for skills whose phase one frame does not show).
         pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`).
+        start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
+            first step with a vertical action, :func:`pasta.policy.reset.align_offset`), so the step
+            counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
+            the policy never learns the align motion the reset pose replaces (cut).
     """
 
     hindsight_ratio: float = 0.5
@@ -61,6 +65,7 @@ class PolicyTrainConfig:
     max_demos: int = 0
     step_feature: bool = False
     pose_feature: bool = False
+    start_at_reset: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.hindsight_ratio <= 1.0 or self.noise < 0 or not 0.0 <= self.val_fraction < 1.0:
@@ -144,6 +149,8 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
     demos = load_demos(data, [skill])
     if cfg.max_demos > 0:
         demos = demos[: cfg.max_demos]
+    if cfg.start_at_reset:
+        demos = [from_reset_pose(d) for d in demos]
     train_demos, val_demos = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=seed)
     kw = dict(dough_points=cfg.dough_points, tool_points=cfg.tool_points, goal_points=cfg.goal_points,
               hindsight_ratio=cfg.hindsight_ratio)
@@ -152,6 +159,20 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
     if tool is None:
         tool = _skill_tool(skill)
     return PolicyTask(skill, tool, train, val, cfg, network, seed=seed, batch_size=batch_size)
+
+
+def from_reset_pose(demo: Any) -> Any:
+    """``demo`` from its reset pose on: the steps before its first vertical action (the align phase,
+    :func:`pasta.policy.reset.align_offset`) removed; a demo with no vertical action is kept whole."""
+    from dataclasses import replace
+
+    from pasta.policy.reset import align_offset
+
+    _, k = align_offset(demo)
+    if k <= 0 or k >= len(demo.action):
+        return demo
+    return replace(demo, dough=demo.dough[k:], tool_points=demo.tool_points[k:], tool_pose=demo.tool_pose[k:],
+                   action=demo.action[k:])
 
 
 def _skill_tool(skill: str) -> str:

@@ -1,8 +1,17 @@
 """``pasta pipeline``: demonstrations and every learned module in one resumable run.
 
-Units run in this order, each one a ``pasta demos`` or ``pasta train`` call::
+Units run in this order, each one a ``pasta demos`` or ``pasta train`` call, or for the last two stages
+``python -m pasta.policy.reset`` / ``python -m pasta.policy.select``::
 
     demos/<skill> (+ demos/push-wide) -> vae -> feasibility/<skill> -> cost -> policy/<skill>
+        -> reset/cut -> select/cut, select/roll
+
+``reset/<skill>`` trains the learned reset (start) pose of a policy (:mod:`pasta.policy.reset`; cut only by
+default, ``reset_skills=``) into ``OUT/policy/<skill>/reset.*``; ``select/<skill>`` chooses the policy's
+stopping rule on the validation configs (seed 2000) and writes it into its ``model.json``
+(:mod:`pasta.policy.select`; cut and roll by default, ``select_skills=``), with the per-config results in
+``OUT/policy/<skill>/select.json``. Both run after every policy unit, so a cut rule is chosen with the
+cut's reset pose in place.
 
 Resuming. ``OUT/pipeline.json`` records, per unit, the settings it was (or is being) produced with: the
 resolved trainer configuration (less ``progress``, ``threads``, ``resume`` and ``workers``, which do
@@ -10,7 +19,11 @@ not change the result), the dataset (absolute path and demonstrations per skill)
 feasibility and cost, a digest of the VAE weights they encode with. A training unit is *done* when its
 ``metrics.json`` exists and its record holds the same settings; done units are skipped. A unit whose
 record holds the same settings but which has no ``metrics.json`` was interrupted: the training loop
-resumes it from its ``last.*`` checkpoint. A unit with no record or other settings starts afresh (its
+resumes it from its ``last.*`` checkpoint (a ``reset`` unit, a few minutes, restarts; a ``select`` unit
+resumes at the first config it had not scored). ``reset`` and ``select`` units write into the policy's
+directory but have their own done files (``reset_metrics.json``, ``select.json``); a ``select`` unit's
+settings include digests of the policy and reset weights it scored, so a retrained policy reselects, and
+it is only done while ``model.json`` still holds the rule it chose. A unit with no record or other settings starts afresh (its
 ``last.*`` and ``metrics.json`` are removed first, so a stale checkpoint is never continued). A demos
 unit is done when its record matches and every file exists; otherwise ``pasta demos`` fills in the
 missing files (it never rewrites existing ones).
@@ -39,9 +52,13 @@ __all__ = ["PipelineConfig", "Unit", "UnitResult", "STAGES", "STAGE_DEFAULTS", "
 FORMAT = "pasta-pipeline/1"
 RECORD = "pipeline.json"
 #: stage order (the order units run in)
-STAGES = ("demos", "vae", "feasibility", "cost", "policy")
+STAGES = ("demos", "vae", "feasibility", "cost", "policy", "reset", "select")
 #: stages with one unit per skill
-PER_SKILL = ("demos", "feasibility", "policy")
+PER_SKILL = ("demos", "feasibility", "policy", "reset", "select")
+#: stages that only run for some skills: the pipeline argument that names them
+SKILL_SUBSETS = {"reset": "reset_skills", "select": "select_skills"}
+#: stages whose units work on the trained policy of their skill (they write into OUT/policy/<skill>)
+ON_POLICY = ("reset", "select")
 #: stages whose units encode with the trained VAE
 USES_VAE = ("feasibility", "cost")
 #: pipeline defaults per stage: sized for a 2-core CPU, the settings the shipped models were trained with
@@ -51,6 +68,8 @@ STAGE_DEFAULTS: dict[str, dict[str, Any]] = {
     "feasibility": {"threads": 1},
     "cost": {"stride": 5, "threads": 1},
     "policy": {"epochs": 40, "steps_per_epoch": 50, "threads": 1},
+    "reset": {"epochs": 45, "start_step": 0, "points": 1000, "threads": 1},
+    "select": {"n": 20, "seed": 2000, "write": True, "threads": 1},
 }
 #: pipeline defaults per stage and skill (over :data:`STAGE_DEFAULTS`, under every command-line key)
 SKILL_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
@@ -59,16 +78,27 @@ SKILL_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
     "feasibility": {"cut": {"stride": 3}, "push": {"stride": 4, "epochs": 20},
                     "roll": {"stride": 4, "epochs": 20, "shift_per_positive": 5}},
     # the shipped cut and roll policies see the execution step and the tool pose (docs/policies.md); their
-    # stopping rule is chosen afterwards on validation configs (python -m pasta.policy.select ... write=1)
-    "policy": {"cut": {"step_feature": True, "pose_feature": True}, "roll": {"step_feature": True, "pose_feature": True}},
+    # stopping rule is chosen afterwards on validation configs (stage select); the cut policy learns from
+    # its reset pose on (the align phase, which the learned reset pose replaces, dropped from the demos)
+    "policy": {"cut": {"step_feature": True, "pose_feature": True, "start_at_reset": True},
+               "roll": {"step_feature": True, "pose_feature": True}},
+    # the grids the shipped rules were chosen from (docs/policies.md, "Choosing the stopping rule")
+    "select": {"cut": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},
+               "roll": {"thresholds": "0.3,0.4,0.5,0.6,0.7,0.8", "min_steps": "1,20", "max_steps": "0,60"}},
 }
 #: the held-out figure reported for each stage (a key of its metrics.json)
 FIGURES = {"vae": "heldout_chamfer_mean", "feasibility": "heldout_auc_hard", "cost": "heldout_spearman",
-           "policy": "heldout_action"}
+           "policy": "heldout_action", "reset": "heldout_mae_m", "select": "mean_ni"}
+#: the file whose presence (with a matching record) marks a unit of these stages done, in its directory
+DONE_FILES = {"reset": "reset_metrics.json", "select": "select.json"}
+#: what a fresh start removes from a unit's directory, per stage (default: the training loop's files)
+FRESH_FILES = {"reset": ("reset_metrics.json",), "select": ("select.json", "select.partial.jsonl")}
 #: keys the pipeline sets itself, per stage, and where to set them instead
 _FLAT = "`pasta train <module> flat=true` for the Flat 3D baseline (the pipeline trains the entity models)"
 RESERVED = {"demos": {"skill": "skills=", "out": "data="}, "feasibility": {"skill": "skills=", "flat": _FLAT},
-            "policy": {"skill": "skills="}, "vae": {"flat": _FLAT, "subdir": _FLAT}, "cost": {"flat": _FLAT}}
+            "policy": {"skill": "skills="}, "vae": {"flat": _FLAT, "subdir": _FLAT}, "cost": {"flat": _FLAT},
+            "reset": {"skill": "skills= and reset_skills=", "data": "data=", "out": "out="},
+            "select": {"skill": "skills= and select_skills=", "models": "out=", "out": "out="}}
 #: settings that do not change what a unit produces; changing them does not rerun it
 IGNORED = ("progress", "threads", "resume", "workers")
 
@@ -84,8 +114,11 @@ class PipelineConfig:
         wide_push_demos: push demonstrations of ``pasta demos scene=wide`` added after the default
             ones (unit ``demos/push-wide``; 0: none).
         workers: demo generation processes (``demos.workers``).
-        stages: comma-separated stages to run, of demos, vae, feasibility, cost, policy.
-        skills: comma-separated skills for the per-skill stages (demos, feasibility, policy).
+        stages: comma-separated stages to run, of demos, vae, feasibility, cost, policy, reset, select.
+        skills: comma-separated skills for the per-skill stages (demos, feasibility, policy, reset, select).
+        reset_skills: the skills of ``skills`` whose policy gets a learned reset pose (stage ``reset``).
+        select_skills: the skills of ``skills`` whose policy's stopping rule is chosen on validation
+            configs (stage ``select``); the others keep the default rule.
         force: rerun every selected unit, done or not (demonstrations are never deleted).
         only: comma-separated units or stages to run, e.g. ``feasibility/cut,cost`` (empty: all).
         progress: draw the inner progress bars (stderr).
@@ -98,6 +131,8 @@ class PipelineConfig:
     workers: int = 2
     stages: str = ",".join(STAGES)
     skills: str = "cut,push,roll"
+    reset_skills: str = "cut"
+    select_skills: str = "cut,roll"
     force: bool = False
     only: str = ""
     progress: bool = True
@@ -227,6 +262,16 @@ def _build(stage: str, skill: str | None, values: Mapping[str, Any]) -> tuple:
         from pasta.demos.generate import DemoConfig
 
         return tuple(build_many(values, [DemoConfig], command="pasta demos"))
+    if stage == "reset":
+        from pasta.policy.reset import ResetTrainConfig
+
+        return tuple(build_many(values, [ResetTrainConfig], command="python -m pasta.policy.reset"))
+    if stage == "select":
+        from pasta.policy.select import SelectConfig
+
+        configs = tuple(build_many(values, [SelectConfig], command="python -m pasta.policy.select"))
+        configs[0].grid()  # malformed grids fail now
+        return configs
     if stage == "policy":
         from pasta.policy.train import LOOP_DEFAULTS, PolicyTrainConfig
         from pasta.train.loop import LoopConfig
@@ -245,7 +290,18 @@ def _directory(cfg: PipelineConfig, stage: str, skill: str | None) -> Path:
     out = Path(cfg.out)
     return {"demos": lambda: Path(cfg.data) / str(skill), "vae": lambda: out / VAE_DIR,
             "feasibility": lambda: out / FEASIBILITY_DIR / str(skill), "cost": lambda: out / COST_DIR,
-            "policy": lambda: out / POLICY_DIR / str(skill)}[stage]()
+            "policy": lambda: out / POLICY_DIR / str(skill), "reset": lambda: out / POLICY_DIR / str(skill),
+            "select": lambda: out / POLICY_DIR / str(skill)}[stage]()
+
+
+def _subset(cfg: PipelineConfig, stage: str, skills: Sequence[str]) -> list[str]:
+    """The skills of ``skills`` that a stage of :data:`SKILL_SUBSETS` runs for (its argument, may be empty)."""
+    key = SKILL_SUBSETS.get(stage)
+    if key is None:
+        return list(skills)
+    names = [n.strip() for n in str(getattr(cfg, key)).split(",") if n.strip()]
+    _check_names(names, _known_skills(), "skill")
+    return [s for s in skills if s in names]
 
 
 def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
@@ -267,7 +323,7 @@ def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
                   f"skills={cfg.skills}", file=sys.stderr)
     units = []
     for stage in (s for s in STAGES if s in stages):
-        for skill in (skills if stage in PER_SKILL else [None]):
+        for skill in (_subset(cfg, stage, skills) if stage in PER_SKILL else [None]):
             values = _unit_values(cfg, overrides, stage, skill)
             name = f"{stage}/{skill}" if skill else stage
             try:
@@ -299,7 +355,7 @@ def _check_inputs(cfg: PipelineConfig, units: Sequence[Unit]) -> None:
     from pasta.io.checkpoint import checkpoint_exists
 
     stages = {u.stage for u in units}
-    if "demos" not in stages and stages - {"demos"}:
+    if "demos" not in stages and stages - {"demos", "select"}:
         from pasta.train.data import read_manifest
 
         try:
@@ -311,6 +367,11 @@ def _check_inputs(cfg: PipelineConfig, units: Sequence[Unit]) -> None:
             if unit.stage in USES_VAE and not checkpoint_exists(_vae_dir(cfg, unit)):
                 raise ConfigError(f"{unit.name} needs a trained VAE in {_vae_dir(cfg, unit)}; add vae to stages= "
                                   f"(or only=) or set {unit.stage}.vae=DIR")
+    trained = {u.skill for u in units if u.stage == "policy"}
+    for unit in units:
+        if unit.stage == "select" and unit.skill not in trained and not checkpoint_exists(unit.directory):
+            raise ConfigError(f"{unit.name} needs a trained policy in {unit.directory}; add policy to stages= "
+                              f"(or only=policy/{unit.skill})")
     if "demos" in stages:
         from pasta.demos.generate import validate
 
@@ -327,8 +388,8 @@ def _demo_counts(data: Path, skill: str | None) -> dict[str, int]:
     return {s: len(list((data / s).glob("demo_*.npz"))) for s in skills}
 
 
-def _digest(directory: Path) -> str:
-    path = directory / "model.safetensors"
+def _digest(directory: Path, name: str = "model.safetensors") -> str:
+    path = directory / name
     if not path.is_file():
         return "missing"
     h = hashlib.sha256()
@@ -347,6 +408,10 @@ def settings(cfg: PipelineConfig, unit: Unit) -> dict[str, Any]:
     if unit.stage == "demos":
         config["out"] = str(data)
         return json.loads(json.dumps({"config": config}))
+    if unit.stage == "select":
+        # what it scores: the policy's weights and the reset pose beside them (not the demonstrations)
+        weights = {name: _digest(unit.directory, name) for name in ("model.safetensors", "reset.safetensors", "reset.json")}
+        return json.loads(json.dumps({"config": config, "policy": str(unit.directory.resolve()), "weights": weights}))
     out: dict[str, Any] = {"config": config, "data": str(data), "demos": _demo_counts(data, unit.skill)}
     if unit.stage in USES_VAE:
         out["vae"] = {"path": str(_vae_dir(cfg, unit).resolve()), "weights": _digest(_vae_dir(cfg, unit))}
@@ -388,13 +453,28 @@ def _figure(stage: str, metrics: Mapping[str, Any]) -> str:
                                                         if metrics.get("mean_steps") else "")
     key = FIGURES[stage]
     value = metrics.get(key)
+    if stage == "select" and isinstance(value, (int, float)):
+        return (f"rule {metrics.get('done_threshold', 0):g}, {metrics.get('min_steps', 1)}, "
+                f"{metrics.get('max_steps') or 'none'}: {key} {value:.4g}")
     return f"{key} {value:.4g}" if isinstance(value, (int, float)) else f"{key} n/a"
 
 
-def _read_metrics(directory: Path) -> dict[str, Any] | None:
+def _read_metrics(directory: Path, stage: str = "") -> dict[str, Any] | None:
+    """A unit's metrics from its done file (``metrics.json``, or :data:`DONE_FILES`); ``None`` when not done.
+
+    A ``select`` unit's metrics are its selected rule; with ``write`` it is only done while the policy's
+    ``model.json`` still holds that rule (a retrained policy's ``model.json`` has none)."""
     try:
-        return json.loads((directory / "metrics.json").read_text())
-    except (OSError, json.JSONDecodeError):
+        doc = json.loads((directory / DONE_FILES.get(stage, "metrics.json")).read_text())
+        if stage != "select":
+            return doc
+        selected = dict(doc["selected"])
+        if doc.get("settings", {}).get("write", True):
+            held = json.loads((directory / "model.json").read_text())["config"].get("controller") or {}
+            if any(held.get(k) != selected.get(k) for k in ("done_threshold", "min_steps", "max_steps")):
+                return None
+        return {**selected, "n": doc.get("n"), "seed": doc.get("seed")}
+    except (OSError, json.JSONDecodeError, KeyError, TypeError):
         return None
 
 
@@ -425,6 +505,15 @@ def _run_demos(cfg: PipelineConfig, unit: Unit) -> dict[str, Any]:
 
 def _run_training(cfg: PipelineConfig, unit: Unit) -> dict[str, Any]:
     values = dict(unit.values)
+    if unit.stage == "reset":
+        from pasta.policy.reset import reset_command
+
+        return reset_command(cfg.data, unit.directory, str(unit.skill), values)
+    if unit.stage == "select":
+        from pasta.policy.select import RESULT, select_command
+
+        doc = select_command(cfg.out, str(unit.skill), values, out=unit.directory / RESULT)
+        return {**doc["selected"], "n": doc["n"], "seed": doc["seed"]}
     if unit.stage == "policy":
         from pasta.policy.train import train_command
 
@@ -434,10 +523,11 @@ def _run_training(cfg: PipelineConfig, unit: Unit) -> dict[str, Any]:
     return train(unit.stage, cfg.data, cfg.out, {**values, **({"skill": unit.skill} if unit.skill else {})})
 
 
-def _fresh_start(directory: Path) -> list[str]:
-    """Remove what a previous run with other settings left (``last.*``, ``metrics.json``)."""
+def _fresh_start(directory: Path, stage: str = "") -> list[str]:
+    """Remove what a previous run with other settings left (``last.*``, ``metrics.json``; for the stages
+    that share the policy's directory, their own files only, :data:`FRESH_FILES`)."""
     removed = []
-    for name in ("metrics.json", "last.safetensors", "last.json"):
+    for name in FRESH_FILES.get(stage, ("metrics.json", "last.safetensors", "last.json")):
         path = directory / name
         if path.is_file():
             path.unlink()
@@ -448,12 +538,17 @@ def _fresh_start(directory: Path) -> list[str]:
 def _prepare(unit: Unit, record: Mapping[str, Any] | None, current: dict[str, Any], *, resume: bool,
              force: bool) -> str:
     """Get a training unit's directory ready (a fresh start clears the last run's files); say what happens."""
+    if resume and unit.stage == "reset":
+        return "restarting (interrupted; the reset regressor trains in minutes and keeps no last.*)"
+    if resume and unit.stage == "select":
+        done = _partial_rows(unit.directory)
+        return f"resuming ({done} of {unit.configs[0].n} configs scored)" if done else "restarting (interrupted before its first config)"
     if resume:
         epoch = _last_epoch(unit.directory)
         if epoch is None:
             return "restarting (interrupted before its first epoch ended)"
         return f"resuming from last.* ({epoch} of {unit.configs[0].epochs} epochs done)"
-    removed = _fresh_start(unit.directory)
+    removed = _fresh_start(unit.directory, unit.stage)
     why: list[str] = []
     if force:
         why.append("force=true")
@@ -469,6 +564,16 @@ def _changed(old: Any, new: Any, prefix: str = "") -> list[str]:
     if isinstance(old, dict) and isinstance(new, dict):
         return [c for k in sorted(set(old) | set(new)) for c in _changed(old.get(k), new.get(k), f"{prefix}{k}.")]
     return [prefix.rstrip(".") or "settings"] if old != new else []
+
+
+def _partial_rows(directory: Path) -> int:
+    """Configs an interrupted ``select`` unit has scored (rows of its ``select.partial.jsonl``)."""
+    from pasta.policy.select import PARTIAL
+
+    try:
+        return max(0, sum(1 for line in (directory / PARTIAL).read_text().splitlines() if line.strip()) - 1)
+    except OSError:
+        return 0
 
 
 def _last_epoch(directory: Path) -> int | None:
@@ -504,7 +609,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
                 done, todo = _demo_status(unit, record, current)
                 metrics = record.get("metrics", {}) if done and record else None
             else:
-                metrics = _read_metrics(unit.directory) if same else None
+                metrics = _read_metrics(unit.directory, unit.stage) if same else None
                 done, todo = metrics is not None, ""
             if done and not cfg.force:
                 figure = _figure(unit.stage, metrics or {})
@@ -512,7 +617,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
                 results.append(UnitResult(unit.name, "skipped", 0.0, figure, dict(metrics or {})))
                 continue
             note = todo if unit.stage == "demos" else _prepare(unit, record, current, force=cfg.force,
-                                                               resume=same and not cfg.force and unit.configs[0].resume)
+                                                               resume=same and not cfg.force and getattr(unit.configs[0], "resume", True))
             say(f"{tag} ... {note}".rstrip())
             started = _now()
             _write_record(out, unit.name, {"settings": current, "status": "running", "started": started})

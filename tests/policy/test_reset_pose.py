@@ -111,3 +111,42 @@ def test_reset_head_moves_the_start_pose_and_the_step_counter(tmp_path):
     ctl.approach_pose(piece, piece)
     ctl.reset(obs)
     assert ctl.steps == 0
+
+
+def test_start_at_reset_drops_the_align_phase():
+    from pasta.policy.train import from_reset_pose
+
+    demo, _ = _cut_demo(0, np.random.default_rng(3))
+    _, k = align_offset(demo)
+    assert k >= 1
+    cut = from_reset_pose(demo)
+    assert len(cut.action) == len(demo.action) - k and len(cut.dough) == len(cut.action) + 1
+    assert np.all(cut.action[0] == demo.action[k]) and cut.action[0, 1] != 0  # it starts descending
+    assert np.allclose(cut.tool_pose[0], demo.tool_pose[k]) and np.allclose(cut.dough[-1], demo.dough[-1])
+    flat = Demo("cut", 1, demo.dough, demo.tool_points, demo.tool_pose, demo.action * np.array([1.0, 0.0], np.float32))
+    assert from_reset_pose(flat) is flat  # no vertical action: kept whole
+
+
+def test_reset_offset_averages_its_draws(tmp_path):
+    rng = np.random.default_rng(1)
+    demos = [_cut_demo(i, rng)[0] for i in range(4)]
+    cfg = ResetConfig(points=16, widths=[16, 32], head=[32])
+    net, _ = train_reset(demos, [], cfg, epochs=3, batch_size=4, seed=0)
+    d = demos[0]
+    one = load_reset_from(tmp_path / "one", net, cfg, draws=1).offset(d.dough[0], d.after)
+    many = load_reset_from(tmp_path / "many", net, cfg, draws=8)
+    from pasta.policy.reset import reset_inputs
+
+    pts = np.stack([reset_inputs(d.dough[0], d.after, 16, np.random.default_rng(i))[0] for i in range(8)])
+    with torch.no_grad():
+        expected = float(net(torch.as_tensor(pts)).mean())
+    assert np.isclose(many.offset(d.dough[0], d.after), expected, atol=1e-6)
+    assert not np.isclose(one, expected)  # 16 of 60 points: the draws differ
+
+
+def load_reset_from(directory, net, cfg, *, draws):
+    from dataclasses import replace
+
+    save_checkpoint(directory, module=MODULE, name=NAME, tensors=net.state_dict(),
+                    config={"skill": "cut", "network": vars(replace(cfg, draws=draws))})
+    return load_reset(directory)
