@@ -55,6 +55,8 @@ def main(argv: list[str]) -> int:
         settings = s.get("planner_settings") or {}
         if s["method"] != "oracle" and "clearance_weight" not in settings:
             name += " (before clearance)"  # run before the clearance penalty and executor reorder existed
+        elif s["method"] != "oracle" and "goal_mass" not in (s.get("execute_settings") or {}):
+            name += " (before goal masses)"  # run before the executor's goal masses and anchor existed
         print(f"| {s['task']} | {name} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
               f"{s['improvement_std']:.3f} | {100 * s['success_rate']:.0f}% | {paper_txt} | {s['plan_s_mean']:.1f} | "
               f"{s['execute_s_mean']:.1f} |")
