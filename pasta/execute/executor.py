@@ -310,7 +310,7 @@ def step_goal(plan: Plan, j: int, encoder: Any, cfg: ExecuteConfig, *, skills: M
         for k, (positions, chain) in goal_descendants(plan, j).items():
             if not all(pos in matched for pos in positions):
                 continue
-            masses[k] = float(sum(len(matched[pos]) for pos in positions))  # a cut or roll keeps the mass
+            masses[k] = float(sum(len(matched[pos]) for pos in positions))  # cuts, pushes and rolls keep mass
             if not chain:
                 subgoal[k] = matched[positions[0]]
             elif (cfg.goal_anchor and len(positions) == 1
@@ -370,7 +370,7 @@ def execute_plan(
         """``(P,)`` entity of every point; Flat 3D (a scene-scope encoder) sees the whole dough as one."""
         return np.zeros(len(points), np.int64) if scene_scope else decompose_labels(points, min_points=cfg.min_points)
 
-    goal_pieces = entity_labels(goal) if cfg.goal_pieces else None  # entity label of every goal point
+    goal_labels = entity_labels(goal) if cfg.goal_pieces else None  # entity label of every goal point
     infos: list[StepInfo] = []
     diverged = None
     executed: set[int] = set()  # plan steps of ``current`` already run
@@ -380,7 +380,7 @@ def execute_plan(
         step = current.steps[j]
         before = current.initial if j == 0 else current.steps[j - 1].state
         attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=j == 0 and not executed)
-        subgoal = step_goal(current, j, encoder, cfg, skills=skills, goal=goal, goal_labels=goal_pieces)
+        subgoal = step_goal(current, j, encoder, cfg, skills=skills, goal=goal, goal_labels=goal_labels)
         return attended, np.flatnonzero(np.isin(labels, attended)), subgoal
 
     def pick(obs: Any, labels: np.ndarray) -> tuple[int, tuple[int, ...], np.ndarray, list[np.ndarray]]:
