@@ -22,6 +22,7 @@ from pasta.core.matching import min_cost_matching
 from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons
 from pasta.core.skill import Controller, Skill, SkillObservation, SkillSpec, ToolPose
+from pasta.core.tool import ToolSpec
 
 __all__ = [
     "CardinalityError",
@@ -44,6 +45,7 @@ __all__ = [
     "SkillObservation",
     "SkillSpec",
     "ToolPose",
+    "ToolSpec",
     "check_skeleton",
     "enumerate_skeletons",
     "kept_indices",
