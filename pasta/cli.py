@@ -8,6 +8,7 @@ import argparse
 import importlib
 import pkgutil
 import sys
+import warnings
 from collections.abc import Sequence
 
 import pasta.commands
@@ -30,11 +31,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    try:
-        return int(args.handler(args) or 0)
-    except PastaError as exc:
-        print(f"pasta {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        _plugin_warnings_as_lines()
+        try:
+            return int(args.handler(args) or 0)
+        except PastaError as exc:
+            print(f"pasta {args.command}: error: {exc}", file=sys.stderr)
+            return 2
+
+
+def _plugin_warnings_as_lines() -> None:
+    """Print plugin load failures as one ``warning: pasta plugin ...`` line each (not file:line plus source)."""
+    from pasta.plugins import PluginLoadWarning
+
+    shown = warnings.showwarning
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        if issubclass(category, PluginLoadWarning):
+            print(f"warning: {message}", file=sys.stderr)
+        else:
+            shown(message, category, filename, lineno, file, line)
+
+    warnings.showwarning = show
 
 
 if __name__ == "__main__":

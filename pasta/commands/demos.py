@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-HELP = ("generate demonstrations of a skill with its scripted expert on random single-piece scenes "
-        "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points); "
-        "resumable: existing demos are kept")
+HELP = ("generate demonstrations of a skill with its scripted expert on the scenes its plugin draws "
+        "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points, scene); "
+        "any registered skill whose plugin defines demo_scene and an expert; resumable: existing demos are kept")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -28,8 +28,10 @@ EPILOG = """examples:
   pasta eval task=crs_twice method=pasta num=20          # receding horizon with the given skeleton, as in the paper
   pasta eval task=crs method=pasta horizon=5 num=20      # a longer planning horizon than the task needs
   pasta eval task=cut_rearrange method=oracle num=20
-keys: task method num split(test|val) out models controller horizon skeleton resume threads, execute.<field>;
-other key=value items go to the run config (planner, planner.*, device)."""
+  pasta eval task=crs method=pasta skills=cut,push,roll   # plan with these skills only
+keys: task method num split(test|val) out models controller horizon skeleton skills resume threads,
+execute.<field>; other key=value items go to the run config (planner, planner.*, device). Without skills=,
+skills with no trained weights under the models root are left out with a warning (as `pasta run`)."""
 
 
 @dataclass
@@ -45,6 +47,8 @@ class EvalArgs:
     models: str = ""
     horizon: int = 0
     skeleton: str = "auto"
+    # comma-separated skills to plan with; empty: every registered skill with trained weights
+    skills: str = ""
     resume: bool = True
     # torch CPU threads (0: torch's default). 1 by default: crs planning took 5.6 s with 1 thread and
     # 126 s with 2 on a 2-core machine that was also running a training job.
@@ -57,9 +61,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME method=NAME num=20 ...")
 
 
-def result_path(out: str | Path, task: str, method: str, horizon: int, controller: str, split: str = "test") -> Path:
-    """``OUT/<task>_<method>[_h<H>][_learned][_val].jsonl``."""
+def result_path(out: str | Path, task: str, method: str, horizon: int, controller: str, split: str = "test",
+                skills: str = "") -> Path:
+    """``OUT/<task>_<method>[_h<H>][_learned][_skills-a-b][_val].jsonl`` (``_skills-...`` when ``skills=`` is given)."""
+    from pasta.execute.skillset import parse_skill_names
+
     name = f"{task}_{method}" + (f"_h{horizon}" if horizon else "") + ("_learned" if controller == "learned" else "")
+    names = parse_skill_names(skills)
+    name += f"_skills-{'-'.join(names)}" if names else ""
     name += "_val" if split == "val" else ""
     return Path(out) / f"{name}.jsonl"
 
@@ -77,7 +86,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pasta.commands.run import split_overrides
+    from pasta.commands.run import print_skill_warning, split_overrides
     from pasta.config.overrides import build_many
     from pasta.execute.session import build_session
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds
@@ -108,8 +117,10 @@ def run(args: argparse.Namespace) -> int:
 
         torch.set_num_threads(opts.threads)
     session = build_session(opts.task, method=opts.method, models=opts.models or None, config_overrides=passthrough,
-                            execute=execute_kw, horizon=opts.horizon or None, skeleton=opts.skeleton)
-    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split)
+                            execute=execute_kw, horizon=opts.horizon or None, skeleton=opts.skeleton,
+                            skills=opts.skills or None)
+    print_skill_warning(session)
+    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split, opts.skills)
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
     if opts.resume and path.exists():

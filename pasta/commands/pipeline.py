@@ -13,13 +13,19 @@ EPILOG = """arguments (key=value):
   data=data/demos        dataset directory (written by demos, read by the training stages)
   out=models             models root; OUT/pipeline.json records the settings of every unit
   num_demos=200          demonstrations per skill (same as demos.num)
-  wide_push_demos=150    long push demonstrations added after the push ones (demos/push-wide; 0: none)
+  variant_demos=-1       demonstrations per scene variant a skill asks the pipeline for, added after
+                         its default ones (push: 150 scene=wide, unit demos/push-wide); -1: each
+                         variant's own number; 0: none
   workers=2              demo generation processes (same as demos.workers)
   stages=demos,vae,feasibility,cost,policy,reset,select
                          stages to run, in this order whatever the order given
-  skills=cut,push,roll   skills of the per-skill stages (demos, feasibility, policy, reset, select)
-  reset_skills=cut       policies that get a learned reset (start) pose (stage reset)
-  select_skills=cut,roll policies whose stopping rule is chosen on validation configs (stage select)
+  skills=auto            skills of the per-skill stages (demos, feasibility, policy, reset, select);
+                         auto: every registered skill whose plugin can make demonstrations
+                         (built-ins: cut, push, roll)
+  reset_skills=auto      policies that get a learned reset (start) pose (stage reset); auto: the
+                         skills whose plugin asks for it (built-ins: cut); empty: none
+  select_skills=auto     policies whose stopping rule is chosen on validation configs (stage select);
+                         auto: the skills whose plugin asks for it (built-ins: cut, roll); empty: none
   only=UNIT[,UNIT]       run these units only: a unit (feasibility/cut) or a whole stage (cost)
   force=true             rerun the selected units even when done (demonstrations are never deleted)
   progress=false         hide the inner progress bars
@@ -30,9 +36,10 @@ EPILOG = """arguments (key=value):
   `python -m pasta.policy.reset` and `python -m pasta.policy.select` (docs/policies.md); a typo is
   reported with the closest valid key before anything runs.
 
-units and defaults (sized for a 2-core CPU; the settings the shipped models were trained with):
+units and defaults (sized for a 2-core CPU; the settings the shipped models were trained with; the
+per-skill ones come from each skill plugin's training_defaults and demo_variants):
   demos/<skill>          pasta demos skill=<skill> num=<num_demos> workers=<workers> out=<data>
-  demos/push-wide        pasta demos skill=push num=<num_demos + wide_push_demos> scene=wide ...
+  demos/push-wide        pasta demos skill=push num=<num_demos + 150> scene=wide ...
   vae                    epochs=11 stride=5 threads=1                       -> OUT/vae
   feasibility/<skill>    threads=1; cut stride=3 (epochs 30);
                          push and roll stride=4 epochs=20                   -> OUT/feasibility/<skill>

@@ -9,6 +9,7 @@ configured planner. Writes ``plan.json`` and, per step ``h``, the decoded sub-go
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -23,7 +24,7 @@ COMMAND_KEYS = {
     "out": "plan_out",
     "models": "",  # root of trained networks (`pasta train ... out=DIR`); empty: the shipped weights (pasta.weights)
     "horizon": "3",
-    "skills": "",  # comma-separated skill names (default: every registered skill)
+    "skills": "",  # comma-separated skill names (default: every registered skill with trained weights)
     "skeleton": "",  # optional fixed skill sequence, comma-separated
     "num_points": "1000",  # points per entity after decomposition and per decoded sub-goal entity
     "min_points": "50",  # DBSCAN clusters smaller than this are noise (the paper's planning value)
@@ -113,12 +114,6 @@ def _read_ascii_ply(path: Path):
     return data.reshape(-1, 3)
 
 
-def _base_feasibility():
-    from pasta.core import Skill
-
-    return Skill.feasibility
-
-
 def run(args: argparse.Namespace) -> int:
     return plan_files(args.overrides)
 
@@ -132,6 +127,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     from pasta.config import load_config, section
     from pasta.core import PlanningProblem
     from pasta.core.decompose import decompose
+    from pasta.execute.skillset import choose_skills, needs_feasibility_network
 
     if plugins is None:
         from pasta.plugins import get_plugins
@@ -149,9 +145,13 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
 
     encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
     cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
-    names = [n for n in mine["skills"].split(",") if n] or plugins.skills.names()
-    skills = [plugins.skills.create(n) for n in names]
-    needs = [s for s in skills if type(s).feasibility is _base_feasibility() and s.feasibility_model is None]
+    choice = choose_skills(mine["skills"] or None, root, plugins=plugins)  # the same rule as `pasta run`
+    if choice.warning():
+        print(choice.warning(), file=sys.stderr)
+    skeleton = tuple(n for n in mine["skeleton"].split(",") if n) or None
+    choice.require(skeleton or (), "skeleton=")
+    skills = [plugins.skills.create(n) for n in choice.names]
+    needs = [s for s in skills if needs_feasibility_network(s)]
     if needs:
         from pasta.nn.loading import attach_feasibility
 
@@ -161,7 +161,6 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     with torch.no_grad():
         obs = encoder.encode(torch.from_numpy(np.stack(obs_entities))).float()
         goal = encoder.encode(torch.from_numpy(np.stack(goal_entities))).float()
-    skeleton = tuple(n for n in mine["skeleton"].split(",") if n) or None
     problem = PlanningProblem(obs, goal, skills, encoder, cost, horizon=_int(mine, "horizon"), seed=int(cfg.seed), skeleton=skeleton)
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     plan = planner.plan(problem)

@@ -24,11 +24,14 @@ EPILOG = """examples:
   pasta run task=crs seed=1000 controller=learned models=models   # your own `pasta train` root
   pasta run task=crs seed=1000 method=flat                    # the Flat 3D baseline
   pasta run task=crs seed=3 planner=sampling execute.closed_loop=true
+  pasta run task=crs seed=1000 skills=cut,push,roll             # plan with these skills only
 keys of this command: task method=pasta|sampling|flat|oracle models controller log summary horizon threads=1
 skeleton=auto|true|false execute.<field> (see docs/policies.md; the skeleton is given for crs_twice only,
-as in the paper); every other key=value goes to the run config (seed, planner, planner.*)."""
+as in the paper), skills=a,b,c (default: every registered skill with trained weights under the models
+root; the others are left out with a warning; not used by method=oracle); every other key=value goes to
+the run config (seed, planner, planner.*)."""
 
-_OWN = ("task", "models", "controller", "log", "horizon", "skeleton", "method", "summary", "threads")
+_OWN = ("task", "models", "controller", "log", "horizon", "skeleton", "method", "summary", "threads", "skills")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -76,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     torch.set_num_threads(int(own.get("threads", 1)))  # see `pasta eval`: 1 is fastest on a shared CPU
     session = build_session(own["task"], method=own.get("method", "pasta"), models=own.get("models"),
                             config_overrides=rest, execute=execute_kw, horizon=int(own.get("horizon") or 0) or None,
-                            skeleton=own.get("skeleton", "auto"))
+                            skeleton=own.get("skeleton", "auto"), skills=own.get("skills") or None)
+    print_skill_warning(session)
     seed = int(session.cfg.seed)
     logger = None
     if own.get("log"):
@@ -109,6 +113,13 @@ def run(args: argparse.Namespace) -> int:
         path = write_summary(own["summary"], session, out)
         print(f"summary image: {path}")
     return 0
+
+
+def print_skill_warning(session: Any) -> None:
+    """The one line naming the skills left out for lack of weights (``pasta run`` and ``pasta eval``)."""
+    line = session.skill_choice.warning() if session.skill_choice is not None else None
+    if line:
+        print(line, file=sys.stderr)
 
 
 def write_summary(path: str | Path, session: Any, out: Any) -> Path:

@@ -21,7 +21,8 @@ from pasta.core.errors import (
 from pasta.core.matching import min_cost_matching
 from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons
-from pasta.core.skill import Controller, Skill, SkillObservation, SkillSpec, ToolPose
+from pasta.core.skill import Controller, DemoVariant, Skill, SkillObservation, SkillSpec, ToolPose
+from pasta.core.task import Task, TaskScore
 from pasta.core.tool import ToolSpec
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "ConfigError",
     "Controller",
     "CostModel",
+    "DemoVariant",
     "Encoder",
     "InputError",
     "MissingComponentError",
@@ -44,6 +46,8 @@ __all__ = [
     "Skill",
     "SkillObservation",
     "SkillSpec",
+    "Task",
+    "TaskScore",
     "ToolPose",
     "ToolSpec",
     "check_skeleton",

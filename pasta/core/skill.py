@@ -7,7 +7,9 @@ A skill bundles three roles, each filled by a later component and each optional 
 - feasibility ``f_k(U_in (B, N, D), U_out (B, M, D)) -> (B,)`` in ``[0, 1]``: a learned set network
   attached with :meth:`Skill.attach_feasibility`;
 - controllers that act in the simulator: the scripted ``expert`` (demonstrations and goals), the
-  point-cloud ``controller`` (heuristic) and the learned ``policy``, all behind :class:`Controller`.
+  point-cloud ``controller`` (heuristic) and the learned ``policy``, all behind :class:`Controller`;
+- demonstrations: the scene a demonstration starts from (:meth:`Skill.demo_scene`, with optional
+  :attr:`Skill.demo_variants`) and the skill's training settings (:attr:`Skill.training_defaults`).
 
 Calls whose component is missing raise :class:`~pasta.core.errors.MissingComponentError` naming it.
 """
@@ -16,7 +18,8 @@ from __future__ import annotations
 
 import re
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from pasta.core.errors import InputError, MissingComponentError, PluginValidationError
@@ -82,6 +85,29 @@ class SkillObservation:
     scene: np.ndarray | None = None
 
 
+#: a dough box of a demonstration scene: ``(centre (x, y, z), size (dx, dy, dz))``, full extents, metres
+SceneBox = tuple[tuple[float, float, float], tuple[float, float, float]]
+
+
+@dataclass(frozen=True)
+class DemoVariant:
+    """A demonstration scene distribution a skill offers besides ``"default"`` (``pasta demos scene=NAME``).
+
+    Declared in :attr:`Skill.demo_variants`; :meth:`Skill.demo_scene` receives the name.
+
+    Attributes:
+        config: skill config fields the expert uses in this variant, ``{field: value}`` (e.g. a wider
+            target box), applied with :func:`dataclasses.replace` to the skill's default config.
+        pipeline_demos: demonstrations ``pasta pipeline`` adds in this variant after the default ones
+            (unit ``demos/<skill>-<name>``, same folder, the following indices; 0: the pipeline makes none).
+        description: one line for listings and errors.
+    """
+
+    config: Mapping[str, Any] = field(default_factory=dict)
+    pipeline_demos: int = 0
+    description: str = ""
+
+
 @dataclass(frozen=True)
 class ToolPose:
     """A tool placement: ``position`` (x, y, z) and rotation ``yaw`` about the vertical axis (radians)."""
@@ -115,6 +141,14 @@ class Skill:
     #: the skill (1 -> 1) leaves its piece's horizontal centroid about where it was (a roll spreads the
     #: piece where it lies): the executor then aims an earlier step at the goal piece's place directly
     keeps_position: ClassVar[bool] = False
+    #: demonstration scene variants besides ``"default"``: name -> :class:`DemoVariant`
+    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {}
+    #: ``pasta pipeline`` settings of this skill's units, ``{stage: {key: value}}``, over the stage defaults
+    #: and under the command line (keys of ``pasta demos`` / ``pasta train <stage>``). The optional stages
+    #: ``reset`` and ``select`` run by default only for skills that list them (``{}``: with no settings).
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
+    #: the hooks that making demonstrations needs (see :meth:`has_expert`)
+    DEMO_HOOKS: ClassVar[tuple[str, ...]] = ("demo_scene", "sample_expert_params", "expert_approach_pose", "expert")
 
     def __init__(self, config: Any = None) -> None:
         if not isinstance(getattr(type(self), "spec", None), SkillSpec):
@@ -197,6 +231,32 @@ class Skill:
     def expert(self, params: dict[str, float]) -> Controller:
         """Scripted expert with explicit parameters, used for demonstrations and goals."""
         raise self._missing("scripted expert", "the skill plugin does not define `expert`")
+
+    def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
+        """Where the expert with ``params`` starts on ``piece (P, 3)``; ``scene (S, 3)``: all dough, to avoid."""
+        raise self._missing("scripted expert", "the skill plugin does not define `expert_approach_pose`")
+
+    # -- demonstrations (filled by skill plugins; used by `pasta demos`, the pipeline and evaluation) --
+    def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list[SceneBox]:
+        """The dough a demonstration starts from: ``n_in`` boxes ``[(centre, size), ...]`` resting on ``floor_y``.
+
+        Draw every random number from ``rng`` (demo ``i`` is reproducible from its seed). The expert then
+        acts on all of the scene's dough as its piece (``P`` points of the ``n_in`` boxes together).
+        ``variant``: ``"default"`` or a key of :attr:`demo_variants`. Particles are split between the
+        boxes in proportion to their volumes.
+        """
+        raise self._missing("demonstration scene", "the skill plugin does not define `demo_scene`")
+
+    @classmethod
+    def missing_demo_hooks(cls) -> list[str]:
+        """The hooks of :attr:`DEMO_HOOKS` this class does not override (empty: it can make demonstrations)."""
+        return [h for h in cls.DEMO_HOOKS if getattr(cls, h) is getattr(Skill, h)]
+
+    @classmethod
+    def has_expert(cls) -> bool:
+        """Whether the class overrides every hook demonstrations need: ``demo_scene``, ``sample_expert_params``,
+        ``expert_approach_pose`` and ``expert``. ``pasta demos`` and ``pasta pipeline`` take such skills."""
+        return not cls.missing_demo_hooks()
 
     def controller(self) -> Controller:
         """Heuristic controller working from point clouds only (observed piece and sub-goal)."""

@@ -1,5 +1,10 @@
-"""Demonstrations: generation with the scripted experts (``pasta demos``); :mod:`pasta.train.data` reads them."""
+"""Demonstrations: generation with the scripted experts (``pasta demos``); :mod:`pasta.train.data` reads them.
 
-from pasta.demos.generate import DEMO_SKILLS, DemoConfig, demo_path, generate_demos, validate
+The skills that can make them, and their scenes, come from the skill plugins (:mod:`pasta.demos.scene`).
+"""
 
-__all__ = ["DEMO_SKILLS", "DemoConfig", "demo_path", "generate_demos", "validate"]
+from pasta.demos.generate import DemoConfig, demo_path, generate_demos, validate
+from pasta.demos.scene import check_demo_skill, demo_skills, scene_boxes, scene_particles, variants
+
+__all__ = ["DemoConfig", "check_demo_skill", "demo_path", "demo_skills", "generate_demos", "scene_boxes",
+           "scene_particles", "validate", "variants"]

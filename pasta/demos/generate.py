@@ -1,4 +1,8 @@
-"""Demonstration generation: scripted experts with random parameters on random single-piece scenes.
+"""Demonstration generation: scripted experts with random parameters on the scenes their skills draw.
+
+Any registered skill whose plugin defines the demonstration hooks (:meth:`pasta.core.Skill.has_expert`:
+``demo_scene``, ``sample_expert_params``, ``expert_approach_pose``, ``expert``) can make demonstrations;
+the scene (``n_in`` boxes of dough) comes from its ``demo_scene``, see :mod:`pasta.demos.scene`.
 
 Layout of a dataset directory (fixed; the trainers read it)::
 
@@ -34,7 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from pasta.core.errors import ConfigError, InputError
+from pasta.core.errors import ConfigError
+from pasta.demos.scene import check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles, variant_config
 
 FORMAT = "pasta-demos/1"
 
@@ -44,7 +49,7 @@ class DemoConfig:
     """Arguments of ``pasta demos`` (``key=value``).
 
     Attributes:
-        skill: registered skill with a demonstration scene (cut, push, roll).
+        skill: registered skill that can make demonstrations (:func:`pasta.demos.scene.demo_skills`).
         num: demonstrations to have in ``out/<skill>`` (existing ones are kept).
         out: dataset directory.
         workers: worker processes (0: generate in this process).
@@ -53,12 +58,12 @@ class DemoConfig:
         idle_steps: zero-action steps after it (the final dough is taken after them).
         n_particles: simulated particles.
         obs_points: observed points ``P``.
-        scene: ``"default"`` (the scenes of :func:`demo_scene`) or ``"wide"`` (push only: pieces up to
-            0.25 long anywhere on the right of the workspace, pushed to targets with x up to 0.7, as in
-            cut_rearrange; added to a dataset with a larger ``num``, e.g. ``num=350 scene=wide``).
+        scene: ``"default"`` or a scene variant of the skill (:attr:`pasta.core.Skill.demo_variants`,
+            e.g. push's ``"wide"``), usually added to a dataset with a larger ``num``
+            (``num=350 scene=wide``: demos 200-349 in that variant).
     """
 
-    skill: str = "cut"
+    skill: str = ""
     num: int = 200
     out: str = "data/demos"
     workers: int = 2
@@ -70,44 +75,15 @@ class DemoConfig:
     scene: str = "default"
 
 
-#: push targets of ``scene="wide"`` demonstrations: x up to 0.7 (the default box ends at 0.32)
-WIDE_PUSH_TARGET_X_MAX = 0.7
-
-
-def demo_scene(skill: str, rng: np.random.Generator, floor: float, scene: str = "default") -> list[tuple]:
-    """Boxes ``[(centre, size)]`` of the single-piece scene a demonstration of ``skill`` starts from."""
-    from pasta.tasks.library import HEIGHT, SPREAD_X, crs_box, small_box
-
-    if scene == "wide":
-        if skill != "push":
-            raise InputError(f"scene 'wide' exists for push demonstrations only, not '{skill}'")
-        size = (rng.uniform(0.1, 0.25), HEIGHT, rng.uniform(0.06, 0.1))
-        x = rng.uniform(0.4, 0.93 - size[0] / 2)
-        return [((x, floor + HEIGHT / 2, rng.uniform(0.3, 0.7)), size)]
-    if skill == "cut":
-        return [crs_box(rng, floor)]
-    if skill == "push":
-        return [small_box(rng, floor, (0.45, 0.7), (0.3, 0.7))]
-    if skill == "roll":
-        return [small_box(rng, floor, SPREAD_X, (0.3, 0.7))]
-    raise InputError(f"no demonstration scene for skill '{skill}'")
-
-
-DEMO_SKILLS = ("cut", "push", "roll")
-
-
 def demo_path(out: str | Path, skill: str, index: int) -> Path:
     return Path(out) / skill / f"demo_{index:05d}.npz"
 
 
 def validate(cfg: DemoConfig) -> Path:
     """Check every argument before any work starts; returns the (created, writable) skill folder."""
-    from pasta.plugins import get_plugins
-
-    skills = get_plugins().skills
-    known = [s for s in DEMO_SKILLS if s in skills]
-    if cfg.skill not in known:
-        raise ConfigError(f"unknown skill '{cfg.skill}' for demonstrations; known skills: {', '.join(known)}")
+    if not cfg.skill:
+        raise ConfigError(f"`pasta demos` needs skill=NAME; skills with demonstrations: {', '.join(demo_skills()) or 'none'}")
+    cls = check_demo_skill(cfg.skill)
     if cfg.num <= 0:
         raise ConfigError(f"num must be >= 1, got {cfg.num}")
     if cfg.workers < 0:
@@ -115,8 +91,7 @@ def validate(cfg: DemoConfig) -> Path:
     for name in ("settle_steps", "idle_steps"):
         if getattr(cfg, name) < 0:
             raise ConfigError(f"{name} must be >= 0, got {getattr(cfg, name)}")
-    if cfg.scene not in ("default", "wide") or (cfg.scene == "wide" and cfg.skill != "push"):
-        raise ConfigError(f"scene must be 'default' or, for push, 'wide'; got scene={cfg.scene!r} for skill {cfg.skill}")
+    check_variant(cls, cfg.scene)
     if cfg.n_particles < 1 or cfg.obs_points < 1:
         raise ConfigError("n_particles and obs_points must be >= 1")
     folder = Path(cfg.out) / cfg.skill
@@ -155,13 +130,14 @@ def write_manifest(cfg: DemoConfig) -> Path:
     manifest["format"] = FORMAT
     manifest["versions"] = versions()
     skills = manifest.setdefault("skills", {})
-    info = get_plugins().skills.info(cfg.skill)
+    plugins = get_plugins()
+    info = plugins.skills.info(cfg.skill)
     files = sorted((root / cfg.skill).glob("demo_*.npz"))
     skills[cfg.skill] = {
         "count": len(files),
         "tool": info.spec.tool,
         "config": asdict(cfg),
-        "skill_config": _as_dict(get_plugins().skills.default_config(cfg.skill)),
+        "skill_config": _as_dict(skill_config(cfg.skill, cfg.scene)),
         "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
     }
     manifest["counts"] = {k: v["count"] for k, v in skills.items()}
@@ -175,6 +151,15 @@ def _as_dict(obj: Any) -> dict:
     return asdict(obj) if obj is not None else {}
 
 
+def skill_config(skill: str, scene: str = "default") -> Any:
+    """The config the expert of ``skill`` runs with in scene variant ``scene`` (the default config with
+    the variant's fields, :attr:`pasta.core.DemoVariant.config`)."""
+    from pasta.plugins import get_plugins
+
+    plugins = get_plugins()
+    return variant_config(plugins.skills.default_config(skill), plugins.skills.load(skill), scene)
+
+
 class DemoWriter:
     """Generates demonstrations of one skill in one process (one simulator, reused)."""
 
@@ -183,25 +168,18 @@ class DemoWriter:
         from pasta.sim import SimConfig, Simulator
 
         self.cfg = cfg
-        plugins = get_plugins()
-        skill_config = plugins.skills.default_config(cfg.skill)
-        if cfg.scene == "wide":
-            from dataclasses import replace
-
-            skill_config = replace(skill_config, target_x_max=WIDE_PUSH_TARGET_X_MAX)
-        self.skill = plugins.skills.create(cfg.skill, skill_config)
+        self.skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
         self.sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
                                        max_particles=max(10000, cfg.n_particles)))
 
     def generate(self, index: int) -> dict[str, np.ndarray]:
         """The arrays of demonstration ``index`` (see the module docstring)."""
-        from pasta.sim import box_particles
         from pasta.tasks.executor import run_skill
 
         cfg, sim, skill = self.cfg, self.sim, self.skill
         rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])
-        (centre, size), = demo_scene(cfg.skill, rng, sim.floor_y, cfg.scene)
-        sim.reset(box_particles(centre, size, cfg.n_particles, rng), seed=int(rng.integers(2**31)))
+        boxes = scene_boxes(skill, rng, sim.floor_y, cfg.scene)
+        sim.reset(scene_particles(boxes, cfg.n_particles, rng)[0], seed=int(rng.integers(2**31)))
         for _ in range(cfg.settle_steps):
             sim.step()
         obs = sim.observe()
@@ -211,8 +189,7 @@ class DemoWriter:
                         idle_steps=cfg.idle_steps, park=False, record=True)
         arrays = run.trajectory.arrays(action_dim=len(run.trajectory.action[0]) if run.trajectory.action else 1)
         arrays["skill"] = np.array(cfg.skill)
-        arrays["params"] = np.array(json.dumps({**params, "done": run.done, "scene": {"centre": list(map(float, centre)),
-                                                                                     "size": list(map(float, size))}}, sort_keys=True))
+        arrays["params"] = np.array(json.dumps({**params, "done": run.done, **_scene_record(boxes)}, sort_keys=True))
         arrays["final_dough"] = sim.observe().dough.astype(np.float32)
         arrays["dough_index"] = obs.dough_index.astype(np.int64)
         return arrays
@@ -224,6 +201,13 @@ class DemoWriter:
         arrays = self.generate(index)
         write_npz(demo_path(self.cfg.out, self.cfg.skill, index), arrays)
         return int(arrays["action"].shape[0]), time.perf_counter() - t0
+
+
+def _scene_record(boxes: list[tuple]) -> dict[str, Any]:
+    """The scene in a demo's ``params``: ``"scene": {centre, size}`` for one box (the format of the first
+    datasets), ``"scenes": [{centre, size}, ...]`` for more."""
+    rows = [{"centre": [float(v) for v in c], "size": [float(v) for v in s]} for c, s in boxes]
+    return {"scene": rows[0]} if len(rows) == 1 else {"scenes": rows}
 
 
 def pending(cfg: DemoConfig) -> list[int]:

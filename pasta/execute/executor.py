@@ -506,16 +506,14 @@ class _Log:
     def tools(self, t: int, override: dict[str, np.ndarray] | None = None) -> None:
         """Log every tool at its current pose (``override``: tool -> (7,) pose to show instead)."""
         from pasta.io import ToolPrimitive
-        from pasta.sim.tools import KNIFE_HALF, PUSHER_HALF, ROLLER_HALF_LENGTH, ROLLER_RADIUS, TOOL_NAMES
+        from pasta.sim.tools import tool_shapes
 
-        shapes = {"knife": ("cube", [2 * h for h in KNIFE_HALF]), "pusher": ("cube", [2 * h for h in PUSHER_HALF]),
-                  "roller": ("cylinder", [2 * ROLLER_RADIUS, 2 * ROLLER_RADIUS, 2 * ROLLER_HALF_LENGTH])}
         prims = []
-        for name in TOOL_NAMES:
-            if name in shapes:
-                pose = (override or {}).get(name)
-                pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
-                prims.append(ToolPrimitive(name, shapes[name][0], shapes[name][1], pose[:3], pose[3:]))
+        for name in self.sim.tool_names:  # every tool of the simulator, drawn from its ToolSpec's primitives
+            pose = (override or {}).get(name)
+            pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
+            for ent, kind, size, centre, quat in tool_shapes(self.sim.tool_spec(name), pose, self.sim.tool_aperture(name)):
+                prims.append(ToolPrimitive(ent, kind, size, centre, quat))
         self.log.tools("/tools", t, prims)
 
     def step_start(self, h: int, obs: Any, labels: np.ndarray, subgoal: list[np.ndarray], step: PlanStep,

@@ -67,6 +67,8 @@ class Session:
     skills: list[Any] = field(default_factory=list)
     encoder: Any = None
     cost: Any = None
+    #: how the skill set was chosen (``skills=`` or the trained ones; :mod:`pasta.execute.skillset`)
+    skill_choice: Any = None
 
     def describe(self) -> dict[str, Any]:
         from omegaconf import OmegaConf
@@ -76,7 +78,8 @@ class Session:
                 "planner_settings": planner,
                 "controller": "heuristic" if self.method == "oracle" else self.exe.controller,
                 "execute_settings": dataclasses.asdict(self.exe),
-                "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton}
+                "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton,
+                "skills": [sk.name for sk in self.skills] if self.method != "oracle" else list(self.task.skeleton)}
 
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:
         """Plan and execute the task instance ``seed`` (generated and cached on first use) and score it."""
@@ -105,7 +108,8 @@ class Session:
 
 def build_session(task_name: str, *, method: str = "pasta", models: str | Path | None = None,
                   config_overrides: list[str] | None = None, execute: dict[str, Any] | None = None,
-                  horizon: int | None = None, skeleton: str = "auto", plugins: Any = None) -> Session:
+                  horizon: int | None = None, skeleton: str = "auto", plugins: Any = None,
+                  skills: str | list[str] | None = None) -> Session:
     """Load a method's models and planner for ``task_name``.
 
     Args:
@@ -115,6 +119,12 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
         execute: :class:`~pasta.execute.ExecuteConfig` fields (strings are parsed).
         horizon: planning horizon (default: the task's).
         skeleton: ``auto`` (given for ``crs_twice`` only, as in the paper), ``true`` or ``false``.
+        skills: the skills to plan with (``"cut,push,roll"``); ``None``: every registered skill that has
+            trained weights (:func:`pasta.execute.skillset.choose_skills`; the others are left out and
+            ``session.skill_choice.warning()`` names them).
+
+    Raises:
+        ConfigError: the task's ground-truth chain needs a skill that is not chosen.
     """
     from pasta.config import load_config, section
     from pasta.config.overrides import build
@@ -146,23 +156,29 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
     session = Session(task, method, cfg, exe, root, int(horizon or task.horizon), use_skeleton)
     if method == "oracle":
         return session
-    skills = [task.skill(n) for n in plugins.skills.names()]
+    from pasta.execute.skillset import choose_skills, needs_feasibility_network
+
+    choice = choose_skills(skills, root, plugins=plugins, policy=exe.controller == "learned", flat=method == "flat")
+    choice.require(task.skeleton, f"task '{task.name}' (its ground-truth chain)")
+    chosen = [task.skill(n) for n in choice.names]
     if exe.controller == "learned":
         from pasta.policy import POLICY_DIR
         from pasta.policy.learned import load_policy
 
-        for s in skills:
+        for s in chosen:
             load_policy(root / POLICY_DIR / s.name, s, device=str(cfg.device))
     if method == "flat":
         from pasta.nn.flat import load_flat
 
-        encoder, cost, skills = load_flat(root / "flat", skills, device=str(cfg.device))
+        encoder, cost, chosen = load_flat(root / "flat", chosen, device=str(cfg.device))
     else:
         from pasta.nn.loading import attach_feasibility
 
         encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
         cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
-        attach_feasibility([s for s in skills if s.feasibility_model is None], root, latent_dim=encoder.latent_dim)
-    session.skills, session.encoder, session.cost = skills, encoder, cost
+        attach_feasibility([s for s in chosen if needs_feasibility_network(s)], root, latent_dim=encoder.latent_dim)
+    session.skill_choice = choice
+    session.skills, session.encoder, session.cost = chosen, encoder, cost
     session.planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     return session
+

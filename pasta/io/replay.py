@@ -327,7 +327,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
 
     from pasta.sim import SimConfig, Simulator, SimState  # lazy: only verify needs the simulator
 
-    cfg = SimConfig(**json.loads(reader.attachment(SIM_CONFIG)))
+    cfg = SimConfig.from_dict(json.loads(reader.attachment(SIM_CONFIG)))  # also older runs (knife_friction, ...)
     state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))
     sim = Simulator(cfg)
     sim.set_state(state)

@@ -75,6 +75,10 @@ def search(
         method: ``"adam"`` or ``"cem"``.
         start: ``(K_0, D)`` set to start from (default ``problem.obs``).
         elite_fraction, min_std: CEM only.
+
+    Returns:
+        :class:`SearchResult`: the best candidate's skeleton, attention (per step, the consumed indices)
+        and sub-goals (per step ``(M_h, D)``), ready for :func:`pasta.planning.build_plan`.
     """
     if method not in METHODS:
         raise ConfigError(f"unknown optimisation method {method!r}; choose one of {METHODS}")

@@ -12,7 +12,7 @@ import torch
 from pasta.core import Plan, Planner, PlanningProblem
 from pasta.planning.config import LatentPlannerConfig
 from pasta.planning.optimizer import SearchResult, search
-from pasta.planning.rollout import build_plan
+from pasta.planning.latent_rollout import build_plan
 
 
 class LatentPlanner(Planner):

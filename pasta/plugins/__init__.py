@@ -6,6 +6,8 @@ Typical use::
     plugins = get_plugins()
     planner = plugins.planners.create("exhaustive")
     cut = plugins.skills.create("cut")
+    knife = plugins.tools.spec("knife")        # tools are data: a pasta.core.ToolSpec
+    plugins.failures                           # plugins or components refused at load time
 
 Plugin authors implement the hooks of :mod:`pasta.plugins.hookspecs` with :data:`hookimpl`, check their
 work with :mod:`pasta.plugins.checks`, and reuse the contract tests of :mod:`pasta.plugins.testing`.

@@ -26,10 +26,8 @@ from typing import Any
 
 import torch
 
-from pasta.core import CostModel, Encoder, Plan, Planner, PlanningProblem, Skill, SkillSpec
-from pasta.planning.config import LatentPlannerConfig
-from pasta.planning.objective import log_objective, plan_score
-from pasta.planning.rollout import build_plan, rollout
+from pasta.core import CostModel, Encoder, Plan, Planner, PlanningProblem, Skill, SkillSpec, ToolSpec
+from pasta.planning import LatentPlannerConfig, attention_structures, build_plan, log_objective, plan_score, rollout
 from pasta.plugins.hookspecs import hookimpl
 
 SIGMA = 0.1
@@ -120,12 +118,17 @@ def analytic_skills() -> list[Skill]:
     return [SplitSkill(), MoveSkill(), FlattenSkill()]
 
 
-def analytic_problem(*, horizon: int = 3, seed: int = 0, goal: torch.Tensor | None = None) -> PlanningProblem:
-    """The analytic problem (see the module docstring); ``goal`` overrides the goal set ``(G, 5)``."""
+def analytic_problem(*, horizon: int = 3, seed: int = 0, goal: torch.Tensor | None = None,
+                     skeleton: tuple[str, ...] | None = None) -> PlanningProblem:
+    """The analytic problem (see the module docstring); ``goal`` overrides the goal set ``(G, 5)``;
+    ``skeleton`` fixes the skill sequence (its length sets the horizon)."""
     obs = torch.tensor([[1.0, 0.0, 0.7, 0.05, 0.5]])
     if goal is None:
         goal = torch.tensor([[0.6, 0.0, 0.75, 0.05, 0.5], [0.4, 1.0, 0.25, 0.05, 0.5]])
-    return PlanningProblem(obs, goal, analytic_skills(), AnalyticEncoder(), AnalyticCost(), horizon=horizon, seed=seed)
+    if skeleton is not None:
+        horizon = len(skeleton)
+    return PlanningProblem(obs, goal, analytic_skills(), AnalyticEncoder(), AnalyticCost(), horizon=horizon, seed=seed,
+                           skeleton=skeleton)
 
 
 @dataclass
@@ -146,7 +149,7 @@ class ReferencePlanner(Planner):
         start = time.perf_counter()
         best: tuple[float, Any] | None = None
         for skeleton in problem.skeletons():
-            for attention in _attention_structures(problem, skeleton):
+            for attention in attention_structures(problem, skeleton):
                 score, subgoals = self._cem(problem, skeleton, attention, cfg, gen)
                 if best is None or score > best[0]:
                     best = (score, (skeleton, attention, subgoals))
@@ -181,18 +184,13 @@ class ReferencePlanner(Planner):
         return best_score, list(torch.split(best, counts, dim=0))
 
 
-def _attention_structures(problem: PlanningProblem, skeleton) -> list[list[tuple[int, ...]]]:
-    """Every choice of consumed entities per step (unordered: feasibility is permutation invariant)."""
-    options, k = [], len(problem.obs)
-    for name in skeleton:
-        spec = problem.skill_map[name].spec
-        options.append(list(itertools.combinations(range(k), spec.n_in)))
-        k += spec.delta
-    return [list(c) for c in itertools.product(*options)]
-
-
 class AnalyticPlugin:
-    """In-process plugin registering the analytic skills, encoder, cost and the reference planner."""
+    """In-process plugin registering the analytic skills and their tools, encoder, cost and the reference planner."""
+
+    @hookimpl
+    def pasta_register_tools(self, register):
+        for cls in (SplitSkill, MoveSkill, FlattenSkill):  # the tools exist only as names: nothing is simulated
+            register(spec=ToolSpec(cls.spec.tool, description=f"analytic test tool of '{cls.spec.name}'"))
 
     @hookimpl
     def pasta_register_skills(self, register):

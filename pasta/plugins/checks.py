@@ -21,15 +21,24 @@ from pasta.core import (
     PlanningProblem,
     Skill,
     SkillSpec,
+    Task,
     check_skeleton,
     kept_indices,
 )
 from pasta.core.errors import PastaError
-from pasta.planning.rollout import rollout
+from pasta.core.plan import as_latents
+from pasta.planning import rollout
 
 
 class PluginConformanceError(PastaError, AssertionError):
     """A plugin breaks its contract."""
+
+
+def _latents_close(given: Any, expected: torch.Tensor, atol: float) -> bool:
+    try:
+        return torch.allclose(torch.tensor(given, dtype=expected.dtype), expected.detach().cpu(), atol=atol)
+    except (TypeError, ValueError, RuntimeError):  # wrong nesting or shape
+        return False
 
 
 def _require(cond: bool, message: str) -> None:
@@ -85,8 +94,15 @@ def check_plan(plan: Plan, problem: PlanningProblem, *, cost_weight: float | Non
     """Check a plan is well formed for ``problem`` and that its numbers match the problem's models."""
     _require(isinstance(plan, Plan), f"planner returned {type(plan).__name__}, not a Plan")
     skills = problem.skill_map
-    _require(all(n in skills for n in plan.skills), f"plan uses unknown skills {plan.skills}")
+    _require(all(n in skills for n in plan.skills), f"plan uses unknown skills {plan.skills}; the problem's skills are {list(skills)}")
     _require(len(plan.steps) == problem.horizon, f"plan has {len(plan.steps)} steps, horizon is {problem.horizon}")
+    _require(plan.seed == problem.seed, f"plan.seed is {plan.seed!r}, the problem's seed is {problem.seed!r}")
+    for field, given, expected in (("initial", plan.initial, problem.obs), ("goal", plan.goal, problem.goal)):
+        _require(_latents_close(given, expected, atol), f"plan.{field} {given} differs from the problem's "
+                 f"{'observed' if field == 'initial' else 'goal'} latents {as_latents(expected)}")
+    if problem.skeleton is not None:
+        _require(tuple(plan.skills) == tuple(problem.skeleton),
+                 f"plan skeleton {list(plan.skills)} ignores the given problem.skeleton {list(problem.skeleton)}")
     try:
         check_skeleton(plan.skills, [s.spec for s in problem.skills], len(problem.obs), len(problem.goal))
     except CardinalityError as exc:
@@ -106,24 +122,36 @@ def check_plan(plan: Plan, problem: PlanningProblem, *, cost_weight: float | Non
         again = rollout(problem, plan.skills, [s.inputs for s in plan.steps], subgoals)
     for h, step in enumerate(plan.steps):
         _require(abs(float(again.feasibility[0, h]) - step.feasibility) <= atol, f"step {h}: reported feasibility {step.feasibility} differs from the model's {float(again.feasibility[0, h])}")
-        _require(torch.allclose(again.states[h][0], torch.tensor(step.state, dtype=problem.obs.dtype), atol=atol), f"step {h}: reported state differs from the rolled-out set")
+        _require(torch.allclose(again.states[h][0], torch.tensor(step.state, dtype=problem.obs.dtype), atol=atol),
+                 f"step {h}: reported state {step.state} differs from the rolled-out set {as_latents(again.states[h][0])}")
     _require(abs(float(again.cost[0]) - plan.final_cost) <= atol, f"reported final cost {plan.final_cost} differs from the model's {float(again.cost[0])}")
     if cost_weight is not None:
         floor_prod = math.prod(max(s.feasibility, 0.01) for s in plan.steps)
-        _require(plan.score <= floor_prod * math.exp(-cost_weight * max(plan.final_cost, 0.0)) + atol, "score exceeds the objective's value")
+        bound = floor_prod * math.exp(-cost_weight * max(plan.final_cost, 0.0))
+        _require(plan.score <= bound + atol, f"score {plan.score} exceeds the objective's value {bound} (feasibilities "
+                 f"{[s.feasibility for s in plan.steps]}, cost {plan.final_cost}, cost_weight {cost_weight})")
     _require(plan.to_json() and Plan.from_json(plan.to_json()).to_json() == plan.to_json(), "plan does not survive a JSON round trip")
 
 
-def check_planner(planner: Planner, problem: PlanningProblem | None = None) -> Plan:
-    """Run ``planner`` on ``problem`` (default: the analytic problem) and check the plan, determinism and errors."""
+def check_planner(planner: Planner, problem: PlanningProblem | None = None, *, name: str | None = None) -> Plan:
+    """Run ``planner`` on ``problem`` (default: the analytic problem) and check the plan, determinism and errors.
+
+    Also checks that ``plan.planner`` is ``name`` (default: the class's ``name``), and that the planner
+    honours a given ``problem.skeleton`` (a sub-optimal one on the analytic problem) and records the seed.
+    """
     from pasta.plugins.analytic import analytic_problem
 
     _require(isinstance(planner, Planner), f"{planner!r} is not a pasta.core.Planner")
+    expected_name = name or getattr(type(planner), "name", None)
     problem = problem or analytic_problem()
+    cost_weight = getattr(planner.config, "cost_weight", None)
     plan = planner.plan(problem)
-    check_plan(plan, problem, cost_weight=getattr(planner.config, "cost_weight", None))
+    check_plan(plan, problem, cost_weight=cost_weight)
+    _require(plan.planner == expected_name, f"plan.planner is {plan.planner!r}, the planner is registered as {expected_name!r}")
     again = planner.plan(problem)
     _require(plan.to_json(timings=False) == again.to_json(timings=False), "the same seed must give the same plan (JSON without timings)")
+    given = analytic_problem(skeleton=("move", "split", "flatten"), seed=problem.seed + 1)
+    check_plan(planner.plan(given), given, cost_weight=cost_weight)  # seed, skeleton honoured
     impossible = analytic_problem(horizon=1, goal=problem.goal.new_zeros(3, problem.encoder.latent_dim) + 0.5)
     try:
         planner.plan(impossible)
@@ -132,6 +160,50 @@ def check_planner(planner: Planner, problem: PlanningProblem | None = None) -> P
     else:
         raise PluginConformanceError("a problem no skill sequence can solve must raise CardinalityError")
     return plan
+
+
+def check_task(task: Task, *, skills: Any = None, seed: int = 1000) -> Any:
+    """Check a task's metadata, one instance (``task.instance(seed)``: cached when the task keeps a cache) and
+    its scoring; return the instance.
+
+    Checks: ``task`` is a :class:`pasta.core.Task` with a name, a non-empty skeleton of registered skills
+    (``skills``: a registry, default the registered skills) and a threshold in ``(0, 1]``; the instance
+    records the seed and the skeleton; initial and goal clouds are finite ``(P, 3)`` of the same ``P`` and
+    differ; the goal scored against itself is a success with improvement 1 and the initial dough scores 0.
+    """
+    import numpy as np
+
+    _require(isinstance(task, Task), f"{task!r} is not a pasta.core.Task")
+    name = task.name
+    _require(isinstance(name, str) and bool(name), f"{type(task).__name__}.name must be the registered name, got {name!r}")
+    if skills is None:
+        from pasta.plugins.registry import get_plugins
+
+        skills = get_plugins().skills
+    skeleton = tuple(task.skeleton)
+    _require(bool(skeleton) and all(isinstance(n, str) for n in skeleton), f"task '{name}': skeleton must be a non-empty tuple of skill names, got {skeleton!r}")
+    unknown = [n for n in skeleton if n not in skills]
+    _require(not unknown, f"task '{name}': skeleton {list(skeleton)} uses unregistered skills {unknown}; registered: {skills.names()}")
+    _require(task.horizon == len(skeleton), f"task '{name}': horizon {task.horizon} differs from len(skeleton) = {len(skeleton)}")
+    threshold = float(task.threshold)
+    _require(0.0 < threshold <= 1.0, f"task '{name}': threshold must lie in (0, 1], got {threshold}")
+    inst = task.instance(seed)
+    _require(int(inst.seed) == seed, f"task '{name}': instance({seed}).seed is {inst.seed}")
+    _require(list(inst.skeleton) == list(skeleton), f"task '{name}' seed {seed}: the instance's chain {list(inst.skeleton)} differs from the task's skeleton {list(skeleton)}")
+    init, goal = np.asarray(inst.init_points), np.asarray(inst.goal)
+    for what, cloud in (("init_points", init), ("goal", goal)):
+        _require(cloud.ndim == 2 and cloud.shape[1] == 3 and len(cloud) > 0, f"task '{name}' seed {seed}: {what} must be (P, 3), got {cloud.shape}")
+        _require(bool(np.isfinite(cloud).all()), f"task '{name}' seed {seed}: {what} has non-finite values")
+    _require(init.shape == goal.shape, f"task '{name}' seed {seed}: init_points {init.shape} and goal {goal.shape} must be the same particles")
+    moved = float(np.abs(goal - init).max())
+    _require(moved > 0.0, f"task '{name}' seed {seed}: the goal equals the initial dough (no particle moved)")
+    itself = task.score(goal, inst)
+    _require(itself.success and abs(itself.improvement - 1.0) < 1e-6 and itself.emd_final < 1e-9,
+             f"task '{name}' seed {seed}: the goal scored against itself must succeed with improvement 1, got {itself}")
+    start = task.score(init, inst)
+    _require(not start.success and abs(start.improvement) < 1e-6,
+             f"task '{name}' seed {seed}: the initial dough must score improvement 0 (no success), got {start}")
+    return inst
 
 
 #: Search budget for conformance runs: they check a plan's structure, determinism and errors, not its quality.

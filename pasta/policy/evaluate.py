@@ -1,16 +1,17 @@
 """Single-skill evaluation: learned policy vs heuristic controller vs scripted expert.
 
-A *config* is an initial single-piece scene and expert parameters, drawn from a seed that the training
-demonstrations did not use. Its goal is what the scripted expert makes of the scene (the simulator is
+A *config* is an initial scene (the skill's demonstration scene, :meth:`pasta.core.Skill.demo_scene`)
+and expert parameters, drawn from a seed that the training demonstrations did not use. Its goal is what the scripted expert makes of the scene (the simulator is
 deterministic): the observed dough after the expert's run. Each controller then starts from the same
 initial state with that goal cloud as its sub-goal, and is scored by the normalised improvement
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
 
-``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=cut,push,roll] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
+``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=a,b] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
 (the stopping rule: the checkpoint's own, ``config.controller``, unless given; a learned reset pose
 beside the policy, ``reset.*``, is used unless ``reset=0``, its step counter starting at ``start_step``.)
 (the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
+(``skills``: default every registered skill that can make demonstrations.)
 prints the table of docs/policies.md.
 """
 
@@ -29,7 +30,7 @@ import numpy as np
 
 from pasta.core.metrics import emd, normalized_improvement
 
-__all__ = ["SkillConfig", "default_scene", "evaluate_skill", "main", "make_configs"]
+__all__ = ["SkillConfig", "evaluate_skill", "main", "make_configs"]
 
 CONTROLLERS = ("learned", "heuristic", "expert")
 
@@ -44,28 +45,11 @@ class SkillConfig:
     params: dict[str, float]
 
 
-def default_scene(skill: str, rng: np.random.Generator, n: int, floor_y: float) -> np.ndarray:
-    """Fallback single-piece scene when :mod:`pasta.demos` is not installed: the long CRS dough (cut), a
-    small piece right of the spreading area (push), a piece in it (roll). ``(n, 3)`` float32."""
-    from pasta.sim import box_particles, crs_dough
+def _scene(skill: Any, rng: np.random.Generator, n: int, floor_y: float) -> np.ndarray:
+    """``(n, 3)`` particles of the skill's default demonstration scene (as ``pasta demos`` draws it)."""
+    from pasta.demos.scene import scene_boxes, scene_particles
 
-    if skill == "cut":
-        return crs_dough(n, rng=rng, floor_y=floor_y)
-    length, depth, height = rng.uniform(0.1, 0.12), rng.uniform(0.06, 0.08), 0.08
-    x = rng.uniform(0.5, 0.65) if skill == "push" else rng.uniform(0.22, 0.32)
-    return box_particles((x, floor_y + height / 2, 0.5), (length, height, depth), n, rng)
-
-
-def _scene(skill: str, rng: np.random.Generator, n: int, floor_y: float) -> np.ndarray:
-    """The demonstration generator's scene distribution (:func:`pasta.demos.generate.demo_scene`), else ours."""
-    try:
-        from pasta.demos.generate import demo_scene
-    except ImportError:
-        return default_scene(skill, rng, n, floor_y)
-    from pasta.sim import box_particles
-
-    (centre, size), = demo_scene(skill, rng, floor_y)
-    return box_particles(centre, size, n, rng)
+    return scene_particles(scene_boxes(skill, rng, floor_y), n, rng)[0]
 
 
 def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10) -> list[SkillConfig]:
@@ -75,7 +59,7 @@ def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10
     out = []
     for i in range(n):
         rng = np.random.default_rng([seed, zlib.crc32(skill.name.encode()), i])
-        sim.reset(_scene(skill.name, rng, sim.cfg.n_particles, sim.floor_y), seed=int(rng.integers(2**31)))
+        sim.reset(_scene(skill, rng, sim.cfg.n_particles, sim.floor_y), seed=int(rng.integers(2**31)))
         for _ in range(settle_steps):
             sim.step()
         params = {k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
@@ -104,7 +88,7 @@ def evaluate_skill(sim: Any, skill: Any, configs: Sequence[SkillConfig], control
         sim.set_state(cfg.state)
         start = cfg.state
         piece = sim.observe().dough
-        approach = skill.expert_approach_pose(piece, cfg.params, scene=piece) if hasattr(skill, "expert_approach_pose") else None
+        approach = skill.expert_approach_pose(piece, cfg.params, scene=piece)
         _run(sim, skill, skill.expert(cfg.params), None, approach)
         goal = sim.observe().dough
         emd0 = emd(piece, goal, n=emd_points, seed=cfg.seed)
@@ -156,7 +140,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
     models = Path(args.get("models", "models"))
     n, seed = int(args.get("n", 20)), int(args.get("seed", 1000))
-    names = [s for s in args.get("skills", "cut,push,roll").split(",") if s]
+    if "skills" in args:
+        names = [s for s in args["skills"].split(",") if s]
+    else:
+        from pasta.demos import demo_skills
+
+        names = demo_skills()
     controllers = [c for c in args.get("controllers", ",".join(CONTROLLERS)).split(",") if c]
     torch.set_num_threads(int(args.get("threads", 1)))
     from pasta.plugins import get_plugins

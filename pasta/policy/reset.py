@@ -228,7 +228,7 @@ class ResetTrainConfig:
     progress: bool = True
 
 
-def reset_command(data: str | Path, out: str | Path, skill: str = "cut",
+def reset_command(data: str | Path, out: str | Path, skill: str,
                   overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """Train the reset-pose regressor of ``skill`` on the demonstrations in ``data`` and write it to
     ``out/reset.*`` (beside the policy's ``model.*``) with ``out/reset_metrics.json``; return the metrics.
@@ -256,7 +256,9 @@ def reset_command(data: str | Path, out: str | Path, skill: str = "cut",
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
-    data, skill = args.pop("data", "data/demos"), args.pop("skill", "cut")
+    data, skill = args.pop("data", "data/demos"), args.pop("skill", "")
+    if not skill:
+        raise SystemExit("python -m pasta.policy.reset: give skill=NAME (its demonstrations in DATA/NAME)")
     out = args.pop("out")
     metrics = reset_command(data, out, skill, args)
     print(json.dumps(metrics, indent=2))

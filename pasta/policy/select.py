@@ -15,8 +15,8 @@ the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.policy.eval
            [thresholds=0.3,0.4,0.5,0.6,0.7] [min_steps=1] [max_steps=0,60,80] [out=FILE.json] [write=1]
            [start_step=S] [reset=0] [learned_max_steps=N] [threads=1]
 
-(any :class:`SelectConfig` key; ``pasta pipeline`` runs it as its ``select`` stage for the cut and roll
-policies, ``write=1``, the result in ``OUT/policy/<skill>/select.json``.)
+(any :class:`SelectConfig` key; ``pasta pipeline`` runs it as its ``select`` stage for the policies of the
+skills whose plugin lists ``select`` in its ``training_defaults`` (built-ins: cut and roll), ``write=1``, the result in ``OUT/policy/<skill>/select.json``.)
 
 (``max_steps`` 0: no cap of the policy's own, only the skill's step limit; ``write=1`` stores the selected
 rule in the checkpoint's ``model.json`` under ``config.controller``, which
@@ -98,7 +98,7 @@ def sweep(sim: Any, skill: Any, configs: Sequence[Any], thresholds: Sequence[flo
     for cfg in configs:
         sim.set_state(cfg.state)
         piece = sim.observe().dough
-        approach = skill.expert_approach_pose(piece, cfg.params, scene=piece) if hasattr(skill, "expert_approach_pose") else None
+        approach = skill.expert_approach_pose(piece, cfg.params, scene=piece)
         run_skill(sim, skill, skill.expert(cfg.params), np.arange(len(piece)), None, approach=approach)
         goal = sim.observe().dough
         emd0 = emd(piece, goal, n=emd_points, seed=cfg.seed)
@@ -294,7 +294,9 @@ def grid_table(doc: dict[str, Any]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
     models = Path(args.pop("models", "models"))
-    name = args.pop("skill", "roll")
+    name = args.pop("skill", "")
+    if not name:
+        raise SystemExit("python -m pasta.policy.select: give skill=NAME (the policy in MODELS/policy/NAME)")
     out = args.pop("out", None)
     sim_kw = json.loads(args.pop("sim")) if "sim" in args else None
     sim = None

@@ -1,4 +1,4 @@
-"""pasta.sim: a Taichi MLS-MPM dough simulator with rigid tools (knife, pusher, roller).
+"""pasta.sim: a Taichi MLS-MPM dough simulator with rigid tools that plugins register (``ToolSpec``).
 
 Importing this package does not start Taichi; constructing a ``Simulator`` does (once per process).
 """
@@ -7,22 +7,21 @@ from .config import RUNTIME_PARAMS, SimConfig
 from .render import render_png
 from .scene import FLOOR_Y, box_particles, crs_dough, sphere_particles
 from .simulator import Observation, SimState, SimulationDiverged, Simulator
-from .tools import PARK_POSES, TOOL_ACTION_DIMS, TOOL_ACTION_SCALES, TOOL_NAMES
+from .tools import MAX_TOOLS, ToolTable, registered_tools
 
 __all__ = [
     "FLOOR_Y",
-    "PARK_POSES",
+    "MAX_TOOLS",
     "RUNTIME_PARAMS",
-    "TOOL_ACTION_DIMS",
-    "TOOL_ACTION_SCALES",
-    "TOOL_NAMES",
     "Observation",
     "SimConfig",
     "SimState",
     "SimulationDiverged",
     "Simulator",
+    "ToolTable",
     "box_particles",
     "crs_dough",
+    "registered_tools",
     "render_png",
     "sphere_particles",
 ]

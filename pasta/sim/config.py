@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
+from typing import Any
 
 from pasta.core.errors import ConfigError
 
@@ -20,9 +21,6 @@ RUNTIME_PARAMS = (
     "spread_x_min",
     "spread_x_max",
     "softness",
-    "knife_friction",
-    "pusher_friction",
-    "roller_friction",
 )
 
 
@@ -34,6 +32,11 @@ class SimConfig:
     ``max_particles``, ``arch``, ``cpu_threads``. Everything in :data:`RUNTIME_PARAMS` is a runtime
     scalar and can also be changed later with ``Simulator.set_params``; ``substeps``,
     ``n_particles``, ``obs_points`` and ``seed`` are plain Python values.
+
+    ``tool_friction`` maps a tool name to its Coulomb friction, overriding the tool's
+    ``ToolSpec.friction`` (``sim.tool_friction.knife=0.2``); also a runtime value
+    (``Simulator.set_params(knife_friction=0.2)``). Older configs' ``knife_friction`` etc. load through
+    :meth:`from_dict`.
 
     Defaults: grid 64^3 (dx = 0.0156: a 0.05 knife spans 3.2 cells, a 0.08 dough 5.1 cells),
     dt = 1e-4 (CFL ~0.46 for the P-wave speed of E = 5e3, rho = 1), 20 substeps per env step
@@ -60,9 +63,7 @@ class SimConfig:
     spread_x_max: float = 0.32
     # --- tools ---------------------------------------------------------------------------------
     softness: float = 666.0  # contact band: influence exp(-softness * sdf) > 0.1
-    knife_friction: float = 0.0
-    pusher_friction: float = 5.0
-    roller_friction: float = 0.9
+    tool_friction: dict[str, float] = field(default_factory=dict)  # tool name -> friction (over ToolSpec.friction)
     # --- scenes and observations --------------------------------------------------------------
     n_particles: int = 5000  # default particle count for scene helpers (1..max_particles)
     obs_points: int = 1000  # size of the observed dough subset
@@ -74,6 +75,9 @@ class SimConfig:
 
         for f in fields(self):
             val = getattr(self, f.name)
+            if f.name == "tool_friction":
+                self.tool_friction = check_tool_friction(val)
+                continue
             if f.type in ("int", int) and (isinstance(val, bool) or not isinstance(val, int)):
                 raise bad(f.name, "must be an int")
             if f.type in ("float", float):
@@ -102,6 +106,39 @@ class SimConfig:
     def dx(self) -> float:
         return 1.0 / self.n_grid
 
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> SimConfig:
+        """Build from a plain dict (a run's ``sim_config.json``), also from older versions: their
+        ``<tool>_friction`` keys (knife_friction, ...) become ``tool_friction`` entries."""
+        d = dict(d)
+        known = {f.name for f in fields(cls)}
+        tf = dict(d.pop("tool_friction", None) or {})
+        for k in list(d):
+            if k not in known and k.endswith("_friction"):
+                tf.setdefault(k[: -len("_friction")], d.pop(k))
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ConfigError(f"unknown simulator settings {unknown}; known: {', '.join(sorted(known))}")
+        return cls(**d, tool_friction=tf)
+
+
+def check_tool_friction(val: Any) -> dict[str, float]:
+    """A validated ``{tool name: friction >= 0}`` copy (also accepts an omegaconf mapping)."""
+    if val is None:
+        return {}
+    try:
+        items = list(val.items())
+    except AttributeError:
+        raise ConfigError(f"sim.tool_friction={val!r}: must be a mapping tool name -> friction") from None
+    out = {}
+    for k, v in items:
+        if not isinstance(k, str) or not k:
+            raise ConfigError(f"sim.tool_friction: key {k!r} must be a tool name")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)) or float(v) < 0:
+            raise ConfigError(f"sim.tool_friction.{k}={v!r}: must be a finite number >= 0")
+        out[k] = float(v)
+    return out
+
 
 def check_params(p: dict, prefix: str = "") -> None:
     """Validate runtime parameters; raise ConfigError naming the first bad one."""
@@ -118,9 +155,6 @@ def check_params(p: dict, prefix: str = "") -> None:
         "ground_friction": lambda v: v >= 0,
         "spread_friction": lambda v: v >= 0,
         "softness": lambda v: v >= 0,
-        "knife_friction": lambda v: v >= 0,
-        "pusher_friction": lambda v: v >= 0,
-        "roller_friction": lambda v: v >= 0,
     }
     what = {
         "nu": "must be in (-1, 0.5)",

@@ -16,10 +16,14 @@ One substep = 4 kernel launches:
 
 The per-particle constitutive update and the scatter are separate kernels and every parameter is a
 field, so a differentiable variant (per-substep particle history + ``ti.ad``) can reuse them.
+
+Tools are runtime data too: up to ``MAX_TOOLS`` tools of up to ``MAX_PRIMS`` primitives each, their
+kinds, sizes, offsets, bounding radii and frictions in fields (``pasta.sim.tools.ToolTable`` fills
+them). The kernels name no tool, so a new tool set reuses the compiled (or offline-cached) kernels.
+Tools are applied to a grid node one after the other in the simulator's tool order.
 """
 
 
-import math
 import os
 from pathlib import Path
 
@@ -28,26 +32,20 @@ import taichi as ti
 
 from pasta.core.errors import ConfigError
 
-from .tools import (
-    KNIFE_HALF,
-    KNIFE_WEDGE_HALF_ANGLE,
-    PUSHER_HALF,
-    ROLLER_HALF_LENGTH,
-    ROLLER_RADIUS,
-    TOOL_BOUND_RADIUS,
-    TOOL_NAMES,
-)
+from .tools import GEO, KIND_IDS, MAX_PRIMS, MAX_TOOLS
 
 # ---- runtime parameter slots (one f32 field) -------------------------------------------------
 P_DT, P_MU, P_LAM, P_YIELD, P_GRAVITY, P_GROUND_FRIC, P_SPREAD_FRIC, P_SPREAD_X0, P_SPREAD_X1, P_SOFTNESS = range(10)
-P_TOOL_FRIC0 = 10  # + tool index
-N_PARAMS = P_TOOL_FRIC0 + len(TOOL_NAMES)
+N_PARAMS = 10
 
-# ---- tool state slots (one (n_tools, TS) f32 field, written once per env step) -----------------
+# ---- tool state slots (one (MAX_TOOLS, TS) f32 field, written once per env step) ---------------
 # position at the start of the env step (3), yaw at the start (1), linear velocity (3),
-# angular velocity (3, world frame, includes the roller spin), yaw rate (1)
-TS_POS, TS_YAW, TS_VEL, TS_OMEGA, TS_YAWRATE = 0, 3, 4, 7, 10
-TS = 11
+# angular velocity (3, world frame, includes a rolling tool's spin), yaw rate (1),
+# finger-pair aperture at the start (1), aperture rate (1)
+TS_POS, TS_YAW, TS_VEL, TS_OMEGA, TS_YAWRATE, TS_AP, TS_APRATE = 0, 3, 4, 7, 10, 11, 12
+TS = 13
+
+K_BOX, K_WEDGE, K_CAPSULE, K_FINGERS = (KIND_IDS[k] for k in ("box", "wedge_blade", "capsule", "finger_pair"))
 
 WALL_CELLS = 3  # free-slip band at the side walls and the ceiling
 FLOOR_CELLS = 2  # floor band (nodes j < FLOOR_CELLS get the floor condition)
@@ -123,18 +121,24 @@ class Engine:
         self.bbox = ti.field(ti.i32, shape=6)  # lo xyz, hi xyz of touched nodes (inclusive)
         self.bad = ti.field(ti.i32, shape=2)  # [non-finite or faster than dx/dt, left the unit cube]
         self.params = ti.field(ti.f32, shape=N_PARAMS)
-        self.tool = ti.field(ti.f32, shape=(len(TOOL_NAMES), TS))
+        self.tool = ti.field(ti.f32, shape=(MAX_TOOLS, TS))
+        # static tool data (ToolTable.kernel_arrays), rewritten when another tool set takes the engine
+        self.n_tools = ti.field(ti.i32, shape=())
+        self.tool_kind = ti.field(ti.i32, shape=(MAX_TOOLS, MAX_PRIMS))
+        self.tool_geo = ti.field(ti.f32, shape=(MAX_TOOLS, MAX_PRIMS, GEO))
+        self.tool_n_prims = ti.field(ti.i32, shape=MAX_TOOLS)
+        self.tool_bound2 = ti.field(ti.f32, shape=MAX_TOOLS)
+        self.tool_fric = ti.field(ti.f32, shape=MAX_TOOLS)
 
         x, v, C, F, A, Vr, n_p, grid, bbox, bad, params, tool = (
             self.x, self.v, self.C, self.F, self.A, self.Vr, self.n_p, self.grid, self.bbox, self.bad,
             self.params, self.tool,
         )
+        n_tools, tool_kind, tool_geo, tool_n_prims, tool_bound2, tool_fric = (
+            self.n_tools, self.tool_kind, self.tool_geo, self.tool_n_prims, self.tool_bound2, self.tool_fric,
+        )
         lo_clamp = ti.Vector([2 * dx, dx, 2 * dx])
         hi_clamp = ti.Vector([1 - 3 * dx, 1 - 3 * dx, 1 - 3 * dx])
-        knife_h = ti.Vector(list(KNIFE_HALF))
-        pusher_h = ti.Vector(list(PUSHER_HALF))
-        ca, sa = math.cos(KNIFE_WEDGE_HALF_ANGLE), math.sin(KNIFE_WEDGE_HALF_ANGLE)
-        bound_r = [TOOL_BOUND_RADIUS[name] + 0.03 for name in TOOL_NAMES]
         serial = scatter == "serial"
 
         # ---------------------------------------------------------------- geometry
@@ -160,31 +164,54 @@ class Engine:
             return dist, nrm
 
         @ti.func
-        def tool_sdf(t: ti.template(), q):
-            """Signed distance and outward unit normal in the tool frame."""
+        def prim_sdf(t, k, q, ap):
+            """Signed distance, outward unit normal (tool frame) and finger side (-1, 0, +1: which finger of
+            a finger pair is nearest, whose opening velocity the contact sees) of primitive k of tool t."""
+            kind = tool_kind[t, k]
+            qp = q - ti.Vector([tool_geo[t, k, 0], tool_geo[t, k, 1], tool_geo[t, k, 2]])
+            h = ti.Vector([tool_geo[t, k, 3], tool_geo[t, k, 4], tool_geo[t, k, 5]])
             dist = 0.0
             nrm = ti.Vector([0.0, 1.0, 0.0])
-            if ti.static(t == 0):  # knife: box intersected with a downward wedge
-                dist, nrm = box_sdf(q, knife_h)
-                r = q - ti.Vector([0.0, -knife_h[1], 0.0])
-                p1 = r[0] * ca - r[1] * sa
-                p2 = -r[0] * ca - r[1] * sa
-                if p1 > dist and p1 >= p2:
-                    dist = p1
-                    nrm = ti.Vector([ca, -sa, 0.0])
-                elif p2 > dist:
-                    dist = p2
-                    nrm = ti.Vector([-ca, -sa, 0.0])
-            elif ti.static(t == 1):  # pusher: box
-                dist, nrm = box_sdf(q, pusher_h)
-            else:  # roller: capsule along local z
-                cz = ti.min(ti.max(q[2], -ROLLER_HALF_LENGTH), ROLLER_HALF_LENGTH)
-                r = q - ti.Vector([0.0, 0.0, cz])
+            side = 0.0
+            if kind == K_CAPSULE:  # along local z: h = (radius, half length, -)
+                cz = ti.min(ti.max(qp[2], -h[1]), h[1])
+                r = qp - ti.Vector([0.0, 0.0, cz])
                 ln = r.norm()
-                dist = ln - ROLLER_RADIUS
+                dist = ln - h[0]
                 if ln > 1e-9:
                     nrm = r / ln
-            return dist, nrm
+            elif kind == K_FINGERS:  # two boxes h at local x = +-(aperture / 2 + h[0])
+                side = 1.0 if qp[0] >= 0 else -1.0
+                dist, nrm = box_sdf(qp - ti.Vector([side * (ap * 0.5 + h[0]), 0.0, 0.0]), h)
+            else:
+                dist, nrm = box_sdf(qp, h)
+                if kind == K_WEDGE:  # box intersected with a downward wedge whose edge is the box bottom
+                    ca = tool_geo[t, k, 6]
+                    sa = tool_geo[t, k, 7]
+                    r = qp - ti.Vector([0.0, -h[1], 0.0])
+                    p1 = r[0] * ca - r[1] * sa
+                    p2 = -r[0] * ca - r[1] * sa
+                    if p1 > dist and p1 >= p2:
+                        dist = p1
+                        nrm = ti.Vector([ca, -sa, 0.0])
+                    elif p2 > dist:
+                        dist = p2
+                        nrm = ti.Vector([-ca, -sa, 0.0])
+            return dist, nrm, side
+
+        @ti.func
+        def tool_sdf(t, q, ap):
+            """Union of tool t's primitives: the nearest one's distance, normal and finger side."""
+            dist = 0.0
+            nrm = ti.Vector([0.0, 1.0, 0.0])
+            side = 0.0
+            for k in range(tool_n_prims[t]):
+                dk, nk, sk = prim_sdf(t, k, q, ap)
+                if k == 0 or dk < dist:
+                    dist = dk
+                    nrm = nk
+                    side = sk
+            return dist, nrm, side
 
         # ---------------------------------------------------------------- constitutive model
         @ti.func
@@ -307,27 +334,30 @@ class Engine:
                 vel = ti.Vector([gv[0], gv[1], gv[2]]) / gv[3]
                 vel[1] += dt * params[P_GRAVITY]
                 xn = ti.cast(I, ti.f32) * dx
-                for t in ti.static(range(len(TOOL_NAMES))):
+                for t in range(n_tools[None]):
                     tv = ti.Vector([tool[t, TS_VEL], tool[t, TS_VEL + 1], tool[t, TS_VEL + 2]])
                     c = ti.Vector([tool[t, TS_POS], tool[t, TS_POS + 1], tool[t, TS_POS + 2]]) + tv * t_now
                     r = xn - c
-                    if r.norm_sqr() < bound_r[t] ** 2:
+                    if r.norm_sqr() < tool_bound2[t]:
                         yaw = tool[t, TS_YAW] + tool[t, TS_YAWRATE] * t_now
                         cy, sy = ti.cos(yaw), ti.sin(yaw)
                         q = ti.Vector([cy * r[0] - sy * r[2], r[1], sy * r[0] + cy * r[2]])
-                        d, nl = tool_sdf(t, q)
+                        ap = tool[t, TS_AP] + tool[t, TS_APRATE] * t_now
+                        d, nl, side = tool_sdf(t, q, ap)
                         if d <= 0 or d < band:
                             infl = ti.min(ti.exp(-d * soft), 1.0)
                             nw = ti.Vector([cy * nl[0] + sy * nl[2], nl[1], -sy * nl[0] + cy * nl[2]])
                             om = ti.Vector([tool[t, TS_OMEGA], tool[t, TS_OMEGA + 1], tool[t, TS_OMEGA + 2]])
                             vt = tv + om.cross(r)
+                            if side != 0.0:  # a finger moves at half the aperture rate along local +-x
+                                vt += (side * 0.5 * tool[t, TS_APRATE]) * ti.Vector([cy, 0.0, -sy])
                             rel = vel - vt
                             vn = rel.dot(nw)
                             tang = rel
                             if vn < 0:
                                 tang = rel - vn * nw
                                 tl = tang.norm()
-                                tang = tang * (ti.max(0.0, tl + params[P_TOOL_FRIC0 + t] * vn) / ti.max(tl, 1e-12))
+                                tang = tang * (ti.max(0.0, tl + tool_fric[t] * vn) / ti.max(tl, 1e-12))
                             vel = vt + (1.0 - infl) * rel + infl * tang
                 # floor: Coulomb friction, higher inside the spreading area
                 if I[1] < FLOOR_CELLS and vel[1] < 0:
@@ -512,6 +542,15 @@ class Engine:
                 self._scatter()
                 self._grid_op(t_now)
                 self._g2p()
+
+    def set_tools(self, arrays: dict) -> None:
+        """Load the static tool data of ``ToolTable.kernel_arrays()`` (no recompile)."""
+        self.tool_kind.from_numpy(arrays["kind"])
+        self.tool_geo.from_numpy(arrays["geo"])
+        self.tool_n_prims.from_numpy(arrays["n_prims"])
+        self.tool_bound2.from_numpy(arrays["bound2"])
+        self.tool_fric.from_numpy(arrays["friction"])
+        self.n_tools[None] = int(arrays["n_tools"])
 
     def set_particles(self, x: np.ndarray, v: np.ndarray, F: np.ndarray, C: np.ndarray) -> None:
         """Load a particle state (N, 3), (N, 3), (N, 3, 3), (N, 3, 3); clears the grid."""

@@ -6,7 +6,27 @@ from pathlib import Path
 
 import numpy as np
 
-_TOOL_COLORS = {"knife": "tab:red", "pusher": "tab:green", "roller": "tab:purple"}
+#: tools without a ToolSpec.color take these in turn
+_PALETTE = ("tab:red", "tab:green", "tab:purple", "tab:blue", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
+
+
+def _tool_colors(names) -> dict[str, str]:
+    """{tool name: colour}: the registered ToolSpec.color where there is one, else the palette in turn."""
+    try:
+        from pasta.plugins import get_plugins
+
+        reg = get_plugins().tools
+        given = {n: reg.info(n).spec.color for n in names if n in reg}
+    except Exception:  # pictures must not fail on a plugin problem; fall back to the palette
+        given = {}
+    out, i = {}, 0
+    for n in names:
+        if given.get(n):
+            out[n] = given[n]
+        else:
+            out[n] = _PALETTE[i % len(_PALETTE)]
+            i += 1
+    return out
 
 
 def render_png(path, dough_points, tool_points=None, goal_points=None, title: str | None = None,
@@ -24,6 +44,7 @@ def render_png(path, dough_points, tool_points=None, goal_points=None, title: st
     d = np.asarray(dough_points, dtype=float).reshape(-1, 3)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
     tools = tool_points if isinstance(tool_points, dict) else ({"tool": tool_points} if tool_points is not None else {})
+    colors = _tool_colors(list(tools))
     views = [(0, 2, "top view (x-z)", "z", (0.2, 0.8)), (0, 1, "side view (x-y)", "y", (0.0, 0.3))]
     for ax, (a, b, name, yl, ylim) in zip(axes, views):
         if goal_points is not None:
@@ -33,7 +54,7 @@ def render_png(path, dough_points, tool_points=None, goal_points=None, title: st
                    cmap="tab10" if labels is not None else None, label="dough")
         for k, pts in tools.items():
             p = np.asarray(pts, dtype=float).reshape(-1, 3)
-            ax.scatter(p[:, a], p[:, b], s=4, c=_TOOL_COLORS.get(k, "tab:blue"), label=k)
+            ax.scatter(p[:, a], p[:, b], s=4, c=colors[k], label=k)
         if b == 1:
             ax.axhline(0.02, color="0.5", lw=0.8)
         ax.set_xlim(0.0, 1.0)

@@ -1,27 +1,19 @@
-"""The public simulator: scenes of dough particles, three rigid tools, env steps, state I/O."""
+"""The public simulator: scenes of dough particles, rigid tools from plugins, env steps, state I/O."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Sequence
 
 import numpy as np
 
 from pasta.core.errors import ConfigError, InputError, SimulationError
+from pasta.core.tool import ToolSpec
 
 from .config import RUNTIME_PARAMS, SimConfig, check_params
-from .tools import (
-    PARK_POSES,
-    ROLLER_RADIUS,
-    TOOL_ACTION_DIMS,
-    TOOL_ACTION_SCALES,
-    TOOL_NAMES,
-    tool_bounds,
-    tool_quat,
-    tool_surface_points,
-)
+from .tools import STATE_COLS, ToolTable, registered_tools, tool_quat
 
 #: floor height (y) where resting dough bottoms sit, as a fraction of dx (0.02 at the 64^3 grid)
 FLOOR_DX = 1.28
@@ -51,10 +43,11 @@ class Observation:
 
 @dataclass
 class SimState:
-    """Full simulator state as plain numpy arrays (N particles, K = len(TOOL_NAMES) tools).
+    """Full simulator state as plain numpy arrays (N particles, K tools).
 
-    x, v: (N, 3) float32; F, C: (N, 3, 3) float32; tools: (K, 5) float64 rows of
-    (x, y, z, yaw, spin) in TOOL_NAMES order; obs_index: (P,) int64; step: int.
+    x, v: (N, 3) float32; F, C: (N, 3, 3) float32; tools: (K, 6) float64 rows of
+    (x, y, z, yaw, spin, aperture) (older states have (K, 5), no aperture); obs_index: (P,) int64;
+    step: int; tool_names: the K tools' names, row order (empty: the simulator's tool order).
     """
 
     x: np.ndarray
@@ -64,26 +57,29 @@ class SimState:
     tools: np.ndarray
     obs_index: np.ndarray
     step: int = 0
+    tool_names: tuple[str, ...] = ()
     _fields: ClassVar[tuple[str, ...]] = ("x", "v", "F", "C", "tools", "obs_index")
 
     def copy(self) -> SimState:
-        return SimState(*(getattr(self, k).copy() for k in self._fields), step=self.step)
+        return SimState(*(getattr(self, k).copy() for k in self._fields), step=self.step, tool_names=tuple(self.tool_names))
 
     def save(self, path: str | Path) -> None:
         """Write an .npz (no pickle)."""
         arrays = {k: np.asarray(getattr(self, k)) for k in self._fields}
-        np.savez(path, step=np.int64(self.step), tool_names=np.array(TOOL_NAMES), **arrays)
+        np.savez(path, step=np.int64(self.step), tool_names=np.array(list(self.tool_names), dtype=str), **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> SimState:
+        """Read an .npz of :meth:`save` (also older ones: three tools, five columns)."""
         with np.load(path, allow_pickle=False) as z:
-            names = tuple(str(s) for s in z["tool_names"])
-            if names != TOOL_NAMES:
-                raise InputError(f"{path}: saved tools {names} differ from this version's {TOOL_NAMES}")
+            names = tuple(str(s) for s in z["tool_names"]) if "tool_names" in z.files else ()
+            tools = z["tools"].astype(np.float64)
+            if tools.ndim != 2 or tools.shape[1] not in (5, 6) or (names and len(names) != tools.shape[0]):
+                raise InputError(f"{path}: tools has shape {tools.shape}, expected (K, 6) or (K, 5) for tools {names}")
             return cls(
                 x=z["x"].astype(np.float32), v=z["v"].astype(np.float32), F=z["F"].astype(np.float32),
-                C=z["C"].astype(np.float32), tools=z["tools"].astype(np.float64),
-                obs_index=z["obs_index"].astype(np.int64), step=int(z["step"]),
+                C=z["C"].astype(np.float32), tools=tools,
+                obs_index=z["obs_index"].astype(np.int64), step=int(z["step"]), tool_names=names,
             )
 
 
@@ -102,22 +98,32 @@ def _get_engine(cfg: SimConfig):
 
 
 class Simulator:
-    """MLS-MPM dough with a knife, a pusher and a roller. See docs/simulator.md.
+    """MLS-MPM dough with rigid tools. See docs/simulator.md.
+
+    Args:
+        cfg: the settings (defaults when ``None``).
+        tools: the tools, a sequence of :class:`~pasta.core.ToolSpec` (at most ``MAX_TOOLS``); ``None``:
+            every registered tool that has geometry (``pasta_register_tools``), in registry order. Tools
+            act on the dough one after the other in this order.
+        seed: seed of the observed particle subset (default ``cfg.seed``).
 
     Several Simulators with the same (n_grid, max_particles) share one set of Taichi fields and
-    kernels (no recompile); their states are swapped in and out transparently when used in turn.
+    kernels (no recompile, whatever their tools); their states are swapped in and out transparently
+    when used in turn.
     """
 
-    def __init__(self, cfg: SimConfig | None = None, seed: int | None = None) -> None:
+    def __init__(self, cfg: SimConfig | None = None, tools: Sequence[ToolSpec] | None = None, *,
+                 seed: int | None = None) -> None:
         self.cfg = cfg = cfg if cfg is not None else SimConfig()
         if not isinstance(cfg, SimConfig):
             raise ConfigError(f"Simulator needs a SimConfig, got {type(cfg).__name__}")
         self.seed = cfg.seed if seed is None else int(seed)
         self._params = {k: float(getattr(cfg, k)) for k in RUNTIME_PARAMS}
-        self._eng = _get_engine(cfg)
         self.dx = 1.0 / cfg.n_grid
+        self._table = ToolTable(registered_tools() if tools is None else list(tools), cfg.tool_friction, self.dx)
+        self._eng = _get_engine(cfg)
         self.floor_y = FLOOR_DX * self.dx
-        self._tools = {name: self._park_pose(name) for name in TOOL_NAMES}
+        self._tools = {name: self._table.park_row(name) for name in self._table.names}
         self._obs_index = np.zeros(0, dtype=np.int64)
         self._step = 0
         self._n = 0
@@ -134,6 +140,7 @@ class Simulator:
             prev._stash = prev._read_state()
         eng.owner = self
         self._write_params()
+        eng.set_tools(self._table.kernel_arrays())
         if self._stash is not None:
             self._write_particles(self._stash)
             self._stash = None
@@ -151,28 +158,45 @@ class Simulator:
         arr[E.P_DT], arr[E.P_MU], arr[E.P_LAM], arr[E.P_YIELD] = p["dt"], mu, lam, p["yield_stress"]
         arr[E.P_GRAVITY], arr[E.P_GROUND_FRIC], arr[E.P_SPREAD_FRIC] = p["gravity"], p["ground_friction"], p["spread_friction"]
         arr[E.P_SPREAD_X0], arr[E.P_SPREAD_X1], arr[E.P_SOFTNESS] = p["spread_x_min"], p["spread_x_max"], p["softness"]
-        for i, name in enumerate(TOOL_NAMES):
-            arr[E.P_TOOL_FRIC0 + i] = p[f"{name}_friction"]
         self._eng.params.from_numpy(arr)
 
     # ------------------------------------------------------------------ setup
-    def _park_pose(self, name: str) -> np.ndarray:
-        return np.array([*PARK_POSES[name], 0.0, 0.0], dtype=np.float64)
+    @property
+    def tool_names(self) -> tuple[str, ...]:
+        """The simulator's tools, in the order they act (and of ``SimState.tools`` rows)."""
+        return self._table.names
+
+    def tool_spec(self, name: str) -> ToolSpec:
+        """The :class:`~pasta.core.ToolSpec` of tool ``name``."""
+        return self._table.spec(name)
 
     def set_params(self, **params: float) -> None:
         """Change runtime parameters (names in ``RUNTIME_PARAMS``: dt, E, nu, yield_stress, gravity,
-        ground_friction, spread_friction, spread_x_min, spread_x_max, softness, knife_friction,
-        pusher_friction, roller_friction). No recompile."""
-        check_params(params)
-        self._params.update({k: float(v) for k, v in params.items()})
+        ground_friction, spread_friction, spread_x_min, spread_x_max, softness; and ``<tool>_friction``
+        for each of the simulator's tools, e.g. knife_friction). No recompile."""
+        fric = {k: v for k, v in params.items() if k.endswith("_friction") and k[: -len("_friction")] in self._table.specs}
+        rest = {k: v for k, v in params.items() if k not in fric}
+        check_params(rest)
+        for k, v in fric.items():
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(float(v)) or float(v) < 0:
+                raise ConfigError(f"{k}={v!r}: must be a finite number >= 0")
+        self._params.update({k: float(v) for k, v in rest.items()})
+        self._table.friction.update({k[: -len("_friction")]: float(v) for k, v in fric.items()})
         if self._eng.owner is self:
             self._write_params()
+            self._eng.set_tools(self._table.kernel_arrays())
         else:
             self._activate()
 
     @property
     def params(self) -> dict[str, float]:
+        """The runtime parameters of ``RUNTIME_PARAMS`` (tool frictions: :attr:`tool_friction`)."""
         return dict(self._params)
+
+    @property
+    def tool_friction(self) -> dict[str, float]:
+        """{tool name: Coulomb friction in use}."""
+        return dict(self._table.friction)
 
     def reset(self, particles: np.ndarray, seed: int | None = None) -> Observation:
         """Start a scene: particles (N, 3) with 1 <= N <= max_particles inside the unit cube;
@@ -198,7 +222,8 @@ class Simulator:
         st = SimState(
             x=x.astype(np.float32), v=np.zeros((n, 3), np.float32),
             F=np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)), C=np.zeros((n, 3, 3), np.float32),
-            tools=np.stack([self._park_pose(name) for name in TOOL_NAMES]), obs_index=idx.astype(np.int64), step=0,
+            tools=np.stack([self._table.park_row(name) for name in self.tool_names]), obs_index=idx.astype(np.int64),
+            step=0, tool_names=self.tool_names,
         )
         self.set_state(st)
         return self.observe()
@@ -206,8 +231,8 @@ class Simulator:
     # ------------------------------------------------------------------ state
     def _read_state(self) -> SimState:
         x, v, F, C = self._eng.get_particles()
-        return SimState(x=x, v=v, F=F, C=C, tools=np.stack([self._tools[k] for k in TOOL_NAMES]),
-                        obs_index=self._obs_index.copy(), step=self._step)
+        return SimState(x=x, v=v, F=F, C=C, tools=np.stack([self._tools[k] for k in self.tool_names]),
+                        obs_index=self._obs_index.copy(), step=self._step, tool_names=self.tool_names)
 
     def _write_particles(self, st: SimState) -> None:
         self._eng.set_particles(st.x, st.v, st.F, st.C)
@@ -218,21 +243,38 @@ class Simulator:
         self._activate()
         return self._read_state()
 
+    def _state_tools(self, state: SimState) -> dict[str, np.ndarray]:
+        """Tool rows of ``state`` by name: rows named in ``state.tool_names`` (tools the state does not
+        name are parked), else rows in this simulator's order; 5-column rows get the default aperture."""
+        tools = np.asarray(state.tools, dtype=np.float64)
+        names = tuple(state.tool_names) or self.tool_names
+        if tools.ndim != 2 or tools.shape[1] not in (5, 6) or tools.shape[0] != len(names):
+            raise InputError(f"state.tools has shape {tools.shape}, expected ({len(names)}, 6) (or 5 columns) "
+                             f"for tools {list(names)}")
+        unknown = [k for k in names if k not in self._table.specs]
+        if unknown:
+            raise InputError(f"state has tools {unknown} this simulator does not have; its tools: {', '.join(self.tool_names)}")
+        out = {k: self._table.park_row(k) for k in self.tool_names}
+        for i, k in enumerate(names):
+            out[k][: tools.shape[1]] = tools[i]
+        return out
+
     def set_state(self, state: SimState) -> None:
         n = state.x.shape[0]
         if not 1 <= n <= self.cfg.max_particles:
             raise InputError(f"state has N={n} particles; must be in [1, max_particles={self.cfg.max_particles}]")
-        shapes = {"x": (n, 3), "v": (n, 3), "F": (n, 3, 3), "C": (n, 3, 3), "tools": (len(TOOL_NAMES), 5)}
+        shapes = {"x": (n, 3), "v": (n, 3), "F": (n, 3, 3), "C": (n, 3, 3)}
         for k, shp in shapes.items():
             if np.shape(getattr(state, k)) != shp:
                 raise InputError(f"state.{k} has shape {np.shape(getattr(state, k))}, expected {shp}")
+        rows = self._state_tools(state)
         idx = np.asarray(state.obs_index, dtype=np.int64)
         if idx.ndim != 1 or idx.size == 0 or idx.min() < 0 or idx.max() >= n:
             raise InputError(f"state.obs_index must be a non-empty 1-D array of indices in [0, {n})")
         self._activate()
         self._write_particles(state)
         self._n = n
-        self._tools = {k: np.array(state.tools[i], dtype=np.float64) for i, k in enumerate(TOOL_NAMES)}
+        self._tools = rows
         self._obs_index = idx.copy()
         self._step = int(state.step)
 
@@ -256,23 +298,31 @@ class Simulator:
 
     # ------------------------------------------------------------------ tools
     def _check_tool(self, name: str) -> None:
-        if name not in TOOL_NAMES:
-            raise InputError(f"unknown tool '{name}'; tools: {', '.join(TOOL_NAMES)}")
+        if name not in self._table.specs:
+            raise InputError(f"unknown tool '{name}'; tools: {', '.join(self.tool_names)}")
 
-    def set_tool_pose(self, name: str, position, yaw: float = 0.0) -> None:
-        """Teleport a tool (centre position (3,), yaw about +y in radians). The position is clamped
-        to the tool's allowed box (inside the walls; roller axis y >= its radius)."""
+    def set_tool_pose(self, name: str, position, yaw: float = 0.0, aperture: float | None = None) -> None:
+        """Teleport a tool (centre position (3,), yaw about +y in radians; a finger pair's ``aperture``,
+        default unchanged). The position is clamped to the tool's allowed box (inside the walls, centre
+        y >= ``ToolSpec.lowest_centre``), the aperture to the finger pair's range."""
         self._check_tool(name)
         pos = np.asarray(position, dtype=np.float64)
         if pos.shape != (3,) or not np.isfinite(pos).all() or not math.isfinite(yaw):
             raise InputError(f"set_tool_pose('{name}'): position must be 3 finite numbers, yaw finite")
-        lo, hi = tool_bounds(name, self.dx)
-        self._tools[name] = np.array([*np.clip(pos, lo, hi), float(yaw), self._tools[name][4]])
+        lo, hi = self._table.bounds(name)
+        row = self._tools[name].copy()
+        row[:4] = [*np.clip(pos, lo, hi), float(yaw)]
+        if aperture is not None:
+            if not math.isfinite(aperture):
+                raise InputError(f"set_tool_pose('{name}'): aperture must be finite")
+            a_lo, a_hi = self._table.aperture_range(name)
+            row[5] = min(max(float(aperture), a_lo), a_hi)
+        self._tools[name] = row
 
     def park_tool(self, name: str) -> None:
-        """Move a tool to its fixed parking pose, high above the workspace (PARK_POSES)."""
+        """Move a tool to its parking pose (``ToolSpec.park``, yaw 0, starting aperture)."""
         self._check_tool(name)
-        self._tools[name] = self._park_pose(name)
+        self._tools[name] = self._table.park_row(name)
 
     def tool_pose(self, name: str) -> np.ndarray:
         """(7,) float32: position + quaternion (w, x, y, z)."""
@@ -284,14 +334,40 @@ class Simulator:
         self._check_tool(name)
         return float(self._tools[name][3])
 
-    # ------------------------------------------------------------------ stepping
-    def step(self, actions: dict | None = None) -> None:
-        """One env step (``substeps`` MPM substeps). ``actions``: {tool name: array in [-1, 1]
-        (values are clipped) of length TOOL_ACTION_DIMS[name]}; tools not named stay still.
+    def tool_aperture(self, name: str) -> float:
+        """The gap between a finger pair's fingers (0 for tools without one)."""
+        self._check_tool(name)
+        return float(self._tools[name][5])
 
-        knife (dx, dy) x 0.015; pusher (dx, dy, dz, dyaw) x (0.01, 0.01, 0.01, 0.025 rad);
-        roller (roll, dyaw, dy, slide) x (0.7 rad, 0.005 rad, 0.005, 0.005), a 3-vector means
-        slide = 0. Rolling by angle a moves the roller a * radius perpendicular to its axis.
+    def tool_state(self, name: str) -> dict[str, float]:
+        """The tool's state row by column name: x, y, z, yaw, spin, aperture."""
+        self._check_tool(name)
+        return dict(zip(STATE_COLS, (float(v) for v in self._tools[name])))
+
+    # ------------------------------------------------------------------ stepping
+    def _action(self, name: str, a) -> np.ndarray:
+        """The action of tool ``name`` as a checked float64 vector, clipped to [-1, 1] and scaled."""
+        spec = self._table.spec(name)
+        a = np.asarray(a, dtype=np.float64).reshape(-1) if np.ndim(a) <= 1 else np.asarray(a)
+        dim, req = spec.action_dim, spec.required_action
+        if dim == 0:
+            raise InputError(f"tool '{name}' is a static obstacle (no action channels); move it with set_tool_pose")
+        if a.ndim != 1 or not req <= a.shape[0] <= dim:
+            want = f"({dim},)" if req == dim else f"({req},) to ({dim},)"
+            raise InputError(f"action for '{name}' ({', '.join(spec.channels)}) must have shape {want}, got {a.shape}")
+        if not np.isfinite(a).all():
+            raise InputError(f"action for '{name}' contains NaN or inf")
+        return np.clip(a, -1.0, 1.0) * np.asarray(spec.action_scales[: a.shape[0]])
+
+    def step(self, actions: dict | None = None) -> None:
+        """One env step (``substeps`` MPM substeps). ``actions``: {tool name: array in [-1, 1] (values are
+        clipped), one component per channel of the tool's ``ToolSpec.action``, the optional trailing
+        ones may be left out (= 0)}; tools not named stay still.
+
+        Channels (times the channel's scale): x, y, z world translation; yaw about +y; roll by that angle
+        about the local z axis (the tool moves angle * radius along its local x and spins); slide along
+        local x; open: aperture change (clamped to the finger pair's range). Translations are clamped
+        to the tool's allowed box. The tool moves at constant velocity over the env step.
         Raises SimulationDiverged (the state is then invalid: reset or set_state)."""
         self._need_scene()
         actions = {} if actions is None else actions
@@ -302,50 +378,49 @@ class Simulator:
         T = cfg.substeps * dt
         from . import engine as E
 
-        tool_arr = np.zeros((len(TOOL_NAMES), E.TS), dtype=np.float32)
+        tool_arr = np.zeros((E.MAX_TOOLS, E.TS), dtype=np.float32)
         new_tools = {}
-        for i, name in enumerate(TOOL_NAMES):
+        for i, name in enumerate(self.tool_names):
             cur = self._tools[name]
             tool_arr[i, E.TS_POS:E.TS_POS + 3] = cur[:3]
             tool_arr[i, E.TS_YAW] = cur[3]
+            tool_arr[i, E.TS_AP] = cur[5]
             new_tools[name] = cur.copy()
         for name, a in actions.items():
             self._check_tool(name)
-            a = np.asarray(a, dtype=np.float64).reshape(-1) if np.ndim(a) <= 1 else np.asarray(a)
-            dim = TOOL_ACTION_DIMS[name]
-            ok_shapes = ((dim,), (3,)) if name == "roller" else ((dim,),)
-            if a.shape not in ok_shapes:
-                raise InputError(f"action for '{name}' must have shape ({dim},), got {a.shape}")
-            if not np.isfinite(a).all():
-                raise InputError(f"action for '{name}' contains NaN or inf")
-            a = np.clip(a, -1.0, 1.0) * np.asarray(TOOL_ACTION_SCALES[name][: a.shape[0]])
+            spec = self._table.spec(name)
+            a = self._action(name, a)
+            ch = dict(zip(spec.channels, a))
             cur = self._tools[name]
             yaw = cur[3]
-            delta = np.zeros(3)
-            dyaw = 0.0
-            omega = np.zeros(3)
             spin = cur[4]
-            if name == "knife":
-                delta[:2] = a
-            elif name == "pusher":
-                delta[:] = a[:3]
-                dyaw = a[3]
-            else:  # roller
-                roll, dyaw, dy = a[0], a[1], a[2]
-                slide = a[3] if a.shape[0] == 4 else 0.0
+            world = np.array([ch.get("x", 0.0), ch.get("y", 0.0), ch.get("z", 0.0)])
+            dyaw = ch.get("yaw", 0.0)
+            omega = np.zeros(3)
+            if "roll" in spec.channels or "slide" in spec.channels:
+                roll = ch.get("roll", 0.0)
                 d = np.array([math.cos(yaw), 0.0, -math.sin(yaw)])  # local +x in world
-                axis = np.array([math.sin(yaw), 0.0, math.cos(yaw)])  # local +z in world
-                delta = d * (roll * ROLLER_RADIUS + slide) + np.array([0.0, dy, 0.0])
-                omega = -roll / T * axis
-                spin = spin - roll
-            lo, hi = tool_bounds(name, self.dx)
+                # written as one sum, as the roller always did: d * (roll * r + slide) + world
+                delta = d * ((roll * spec.roll_radius if "roll" in spec.channels else 0.0) + ch.get("slide", 0.0)) + world
+                if "roll" in spec.channels:
+                    axis = np.array([math.sin(yaw), 0.0, math.cos(yaw)])  # local +z in world
+                    omega = -roll / T * axis
+                    spin = spin - roll
+            else:
+                delta = world
+            lo, hi = self._table.bounds(name)
             target = np.clip(cur[:3] + delta, lo, hi)
             omega[1] += dyaw / T
-            i = TOOL_NAMES.index(name)
+            aperture = cur[5]
+            if "open" in ch:
+                a_lo, a_hi = self._table.aperture_range(name)
+                aperture = min(max(cur[5] + ch["open"], a_lo), a_hi)
+            i = self._table.index[name]
             tool_arr[i, E.TS_VEL:E.TS_VEL + 3] = (target - cur[:3]) / T
             tool_arr[i, E.TS_OMEGA:E.TS_OMEGA + 3] = omega
             tool_arr[i, E.TS_YAWRATE] = dyaw / T
-            new_tools[name] = np.array([*target, yaw + dyaw, spin])
+            tool_arr[i, E.TS_APRATE] = (aperture - cur[5]) / T
+            new_tools[name] = np.array([*target, yaw + dyaw, spin, aperture])
         self._activate()
         eng = self._eng
         eng.tool.from_numpy(tool_arr)
@@ -373,7 +448,7 @@ class Simulator:
         self._need_scene()
         self._activate()
         x = self._eng.x.to_numpy()
-        poses = {k: self.tool_pose(k) for k in TOOL_NAMES}
-        points = {k: tool_surface_points(k, self._tools[k][:3], self._tools[k][3], self._tools[k][4]) for k in TOOL_NAMES}
+        poses = {k: self.tool_pose(k) for k in self.tool_names}
+        points = {k: self._table.surface_points(k, self._tools[k]) for k in self.tool_names}
         return Observation(dough=x[self._obs_index].astype(np.float32), dough_index=self._obs_index.copy(),
                            tool_poses=poses, tool_points=points, step=self._step)

@@ -1,64 +1,42 @@
-"""Rigid tools: geometry, action layout, parking poses and surface-point templates (numpy only).
+"""Tools as simulator data: a :class:`ToolTable` turns registered :class:`~pasta.core.ToolSpec` s into the
+kernel's runtime arrays, allowed pose boxes and surface-point templates (numpy only, no taichi).
 
-Every tool is an analytic SDF in its own frame. A tool pose is a position (the tool's centre) and a
-yaw about the world y axis (the roller also carries a spin angle about its own axis, for its
-quaternion and surface points; the SDF is axisymmetric).
-
-Tool frames (yaw = 0):
-
-- ``knife``: a blade thin along x (0.05 thick), 0.12 long along z, 0.2 tall along y, with a 60 degree
-  wedge edge pointing down; the tip is ``KNIFE_HALF[1]`` below the centre. Cuts in the y-z plane.
-- ``pusher``: a box 0.03 (x) x 0.1 (y) x 0.2 (z): a paddle that pushes along x.
-- ``roller``: a capsule of radius 0.03 whose 0.15-long axis is along z; rolling moves it along x.
+Every tool is a union of analytic SDF primitives in its own frame. A tool's state is a row
+``(x, y, z, yaw, spin, aperture)``: its centre, a yaw about the world y axis, a spin about its local z
+axis (rolling tools only; it turns the quaternion and the surface points, the SDF is treated as
+round) and the gap of its finger pair (0 without one).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-TOOL_NAMES: tuple[str, ...] = ("knife", "pusher", "roller")
-#: action layout per tool; every component is in [-1, 1] and scaled by TOOL_ACTION_SCALES
-#: knife (dx, dy); pusher (dx, dy, dz, dyaw); roller (roll, dyaw, dy, slide)
-TOOL_ACTION_DIMS: dict[str, int] = {"knife": 2, "pusher": 4, "roller": 4}
-TOOL_ACTION_SCALES: dict[str, tuple[float, ...]] = {
-    "knife": (0.015, 0.015),
-    "pusher": (0.01, 0.01, 0.01, 0.025),
-    "roller": (0.7, 0.005, 0.005, 0.005),
-}
+from pasta.core.errors import ConfigError, InputError
+from pasta.core.tool import MAX_PRIMITIVES, Box, Capsule, FingerPair, ToolSpec, WedgeBlade
 
-KNIFE_HALF = (0.025, 0.1, 0.06)  # half extents of the blade box
-KNIFE_WEDGE_HALF_ANGLE = math.radians(30.0)
-KNIFE_TIP_DEPTH = 0.05  # how far below y = 0 the (virtual) knife tip may go
-PUSHER_HALF = (0.015, 0.05, 0.1)
-ROLLER_RADIUS = 0.03
-ROLLER_HALF_LENGTH = 0.075
-
-#: bounding-sphere radius of each tool around its centre (used to skip far grid nodes)
-TOOL_BOUND_RADIUS = {
-    "knife": math.sqrt(sum(h * h for h in KNIFE_HALF)),
-    "pusher": math.sqrt(sum(h * h for h in PUSHER_HALF)),
-    "roller": ROLLER_RADIUS + ROLLER_HALF_LENGTH,
-}
-
-#: where unused tools wait: high up, near the back corner, far from any dough
-PARK_POSES: dict[str, tuple[float, float, float]] = {
-    "knife": (0.15, 0.8, 0.12),
-    "pusher": (0.45, 0.8, 0.12),
-    "roller": (0.75, 0.8, 0.12),
-}
+#: tool slots of the kernel (a simulator holds at most this many tools)
+MAX_TOOLS = 8
+#: primitive slots per tool
+MAX_PRIMS = MAX_PRIMITIVES
+#: kernel ids of the primitive kinds
+KIND_IDS = {"box": 0, "wedge_blade": 1, "capsule": 2, "finger_pair": 3}
+#: floats per primitive slot: offset (3), size (3: half extents, or radius / half length), wedge cos / sin
+GEO = 8
+#: margin added to each tool's bounding radius before the kernel skips far grid nodes
+BOUND_MARGIN = 0.03
+#: state row of one tool
+STATE_COLS = ("x", "y", "z", "yaw", "spin", "aperture")
 
 
-def tool_bounds(name: str, dx: float) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi) box that the tool centre is clamped to: inside the side walls; y >= the tool's
-    lowest point at y = 0 (pusher bottom, roller axis at y >= radius) or 0.05 below (knife tip)."""
-    lo = np.full(3, 3 * dx)
-    hi = np.full(3, 1.0 - 3 * dx)
-    # lowest centre height: the pusher and roller bottoms may reach y = 0; the knife tip may go
-    # 0.05 below it, so that the blade is at full thickness (0.05) at the floor and cuts through
-    lo[1] = {"knife": KNIFE_HALF[1] - KNIFE_TIP_DEPTH, "pusher": PUSHER_HALF[1], "roller": ROLLER_RADIUS}[name]
-    return lo, hi
+def registered_tools() -> list[ToolSpec]:
+    """Every registered tool that has geometry, in registry order."""
+    from pasta.plugins import get_plugins
+
+    reg = get_plugins().tools
+    return [reg.info(n).spec for n in reg.names() if reg.info(n).spec.simulated]
 
 
 def yaw_quat(yaw: float) -> np.ndarray:
@@ -92,36 +70,167 @@ def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     ])
 
 
-def _templates() -> dict[str, np.ndarray]:
-    """~100 surface points per tool in its local frame, fixed forever."""
-    out = {}
-    # knife: 2 faces x 50 points (10 along z x 5 along y) on the lower part of the blade
-    hx, hy, hz = KNIFE_HALF
-    zs = np.linspace(-hz, hz, 10)
-    ys = np.linspace(-hy, -hy + 0.1, 5)
-    pts = []
-    for sx in (-1.0, 1.0):
-        for y in ys:
-            # the wedge narrows the blade near the tip
-            half = min(hx, (y + hy) * math.tan(KNIFE_WEDGE_HALF_ANGLE))
-            for z in zs:
-                pts.append((sx * half, y, z))
-    out["knife"] = np.asarray(pts)
-    # pusher: both x faces, 5 (y) x 10 (z) each
-    hx, hy, hz = PUSHER_HALF
-    pts = [(sx * hx, y, z) for sx in (-1.0, 1.0) for y in np.linspace(-hy, hy, 5) for z in np.linspace(-hz, hz, 10)]
-    out["pusher"] = np.asarray(pts)
-    # roller: 10 angles x 10 positions along the axis on the cylinder
-    ang = np.linspace(0, 2 * math.pi, 10, endpoint=False)
-    zs = np.linspace(-ROLLER_HALF_LENGTH, ROLLER_HALF_LENGTH, 10)
-    out["roller"] = np.asarray([(ROLLER_RADIUS * math.cos(a), ROLLER_RADIUS * math.sin(a), z) for a in ang for z in zs])
-    return {k: v.astype(np.float64) for k, v in out.items()}
+def _face_grid(centre, half, axis: int, sign: float, n: int) -> list[tuple[float, float, float]]:
+    """n x n points on the face of a box normal to ``axis`` on side ``sign``."""
+    a, b = [d for d in range(3) if d != axis]
+    out = []
+    for u in np.linspace(-half[a], half[a], n):
+        for v in np.linspace(-half[b], half[b], n):
+            p = [0.0, 0.0, 0.0]
+            p[axis], p[a], p[b] = sign * half[axis], u, v
+            out.append(tuple(c + q for c, q in zip(centre, p)))
+    return out
 
 
-TOOL_TEMPLATES: dict[str, np.ndarray] = _templates()
+def generated_template(spec: ToolSpec) -> tuple[np.ndarray, np.ndarray]:
+    """Surface points of a tool without explicit ``surface_points``: (T, 3) float64 in the tool frame at
+    aperture 0, and (T,) side in {-1, 0, 1}: a finger point moves by side * aperture / 2 along local x."""
+    pts: list[tuple[float, float, float]] = []
+    side: list[float] = []
+    for p in spec.primitives:
+        o = p.offset
+        if isinstance(p, Capsule):  # 10 angles x 10 positions along the axis
+            for a in np.linspace(0, 2 * math.pi, 10, endpoint=False):
+                for z in np.linspace(-p.half_length, p.half_length, 10):
+                    pts.append((o[0] + p.radius * math.cos(a), o[1] + p.radius * math.sin(a), o[2] + z))
+            side += [0.0] * 100
+        elif isinstance(p, FingerPair):  # inner and outer face of each finger, 5 x 5 each
+            for s in (-1.0, 1.0):
+                c = (o[0] + s * p.half[0], o[1], o[2])
+                for sign in (-1.0, 1.0):
+                    face = _face_grid(c, p.half, 0, sign, 5)
+                    pts += face
+                    side += [s] * len(face)
+        elif isinstance(p, WedgeBlade):  # both x faces, narrowed by the wedge near the edge
+            hx, hy, hz = p.half
+            tan = math.tan(math.radians(p.half_angle))
+            for sx in (-1.0, 1.0):
+                for y in np.linspace(-hy, hy, 5):
+                    half = min(hx, (y + hy) * tan)
+                    for z in np.linspace(-hz, hz, 10):
+                        pts.append((o[0] + sx * half, o[1] + y, o[2] + z))
+            side += [0.0] * 100
+        elif isinstance(p, Box):  # 4 x 4 on each of the six faces
+            for axis in range(3):
+                for sign in (-1.0, 1.0):
+                    pts += _face_grid(o, p.half, axis, sign, 4)
+            side += [0.0] * 96
+    return np.asarray(pts, dtype=np.float64), np.asarray(side, dtype=np.float64)
 
 
-def tool_surface_points(name: str, position: np.ndarray, yaw: float, spin: float = 0.0) -> np.ndarray:
-    """(T, 3) float32 surface points of tool ``name`` at the given pose."""
-    rot = quat_to_matrix(tool_quat(yaw, spin))
-    return (TOOL_TEMPLATES[name] @ rot.T + np.asarray(position, dtype=np.float64)).astype(np.float32)
+class ToolTable:
+    """The tools of one simulator, in its order, and everything derived from their specs.
+
+    Args:
+        specs: the tools, 1..MAX_TOOLS distinct names, each with geometry.
+        friction: ``{name: friction}`` overrides of ``ToolSpec.friction`` (names must be in ``specs``).
+        dx: grid spacing (the allowed pose box keeps tools 3 cells inside the walls).
+    """
+
+    def __init__(self, specs: Sequence[ToolSpec], friction: Mapping[str, float], dx: float) -> None:
+        specs = list(specs)
+        for s in specs:
+            if not isinstance(s, ToolSpec):
+                raise ConfigError(f"Simulator tools must be pasta.core.ToolSpec objects, got {s!r}")
+            if not s.simulated:
+                raise ConfigError(f"tool '{s.name}' has no geometry (a name-only tool); it cannot be simulated")
+        names = tuple(s.name for s in specs)
+        if not names:
+            raise ConfigError("Simulator needs at least one tool (none registered or given)")
+        if len(set(names)) != len(names):
+            raise ConfigError(f"Simulator tools must have distinct names, got {list(names)}")
+        if len(names) > MAX_TOOLS:
+            raise ConfigError(f"Simulator supports at most {MAX_TOOLS} tools (kernel slots), got {len(names)}: {list(names)}")
+        unknown = sorted(set(friction) - set(names))
+        if unknown:
+            raise ConfigError(f"sim.tool_friction names unknown tools {unknown}; tools: {', '.join(names)}")
+        self.names = names
+        self.specs = {s.name: s for s in specs}
+        self.index = {n: i for i, n in enumerate(names)}
+        self.friction = {n: float(friction.get(n, self.specs[n].friction)) for n in names}
+        self.dx = dx
+        self.templates: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for s in specs:
+            if s.surface_points is not None:
+                pts = np.asarray(s.surface_points, dtype=np.float64)
+                self.templates[s.name] = (pts, np.zeros(len(pts)))
+            else:
+                self.templates[s.name] = generated_template(s)
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def spec(self, name: str) -> ToolSpec:
+        if name not in self.specs:
+            raise InputError(f"unknown tool '{name}'; tools: {', '.join(self.names)}")
+        return self.specs[name]
+
+    def bounds(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) box the tool centre is clamped to: 3 cells inside the walls; y >= the tool's lowest
+        allowed centre height (``ToolSpec.lowest_centre``)."""
+        lo = np.full(3, 3 * self.dx)
+        hi = np.full(3, 1.0 - 3 * self.dx)
+        lo[1] = self.spec(name).lowest_centre
+        return lo, hi
+
+    def park_row(self, name: str) -> np.ndarray:
+        """(6,) state row of the parked tool: its park centre, yaw 0, spin 0, its starting aperture."""
+        s = self.spec(name)
+        return np.array([*s.park, 0.0, 0.0, s.default_aperture], dtype=np.float64)
+
+    def aperture_range(self, name: str) -> tuple[float, float]:
+        fp = self.spec(name).finger_pair
+        return (0.0, 0.0) if fp is None else (fp.min_aperture, fp.max_aperture)  # type: ignore[return-value]
+
+    def kernel_arrays(self) -> dict[str, np.ndarray]:
+        """The engine's static tool fields: kind (MAX_TOOLS, MAX_PRIMS) int32, geo (MAX_TOOLS, MAX_PRIMS,
+        GEO) float32, n_prims (MAX_TOOLS,) int32, bound2 (MAX_TOOLS,) float32 (squared skip radius),
+        friction (MAX_TOOLS,) float32, n_tools () int32."""
+        kind = np.zeros((MAX_TOOLS, MAX_PRIMS), np.int32)
+        geo = np.zeros((MAX_TOOLS, MAX_PRIMS, GEO), np.float32)
+        n_prims = np.zeros(MAX_TOOLS, np.int32)
+        bound2 = np.zeros(MAX_TOOLS, np.float32)
+        fric = np.zeros(MAX_TOOLS, np.float32)
+        for t, name in enumerate(self.names):
+            s = self.specs[name]
+            n_prims[t] = len(s.primitives)
+            # squared in double, rounded to float32 once: the same value a Python constant would give
+            bound2[t] = (s.bound_radius + BOUND_MARGIN) ** 2
+            fric[t] = self.friction[name]
+            for k, p in enumerate(s.primitives):
+                kind[t, k] = KIND_IDS[p.kind]
+                geo[t, k, 0:3] = p.offset
+                if isinstance(p, Capsule):
+                    geo[t, k, 3:5] = (p.radius, p.half_length)
+                else:
+                    geo[t, k, 3:6] = p.half  # type: ignore[attr-defined]
+                if isinstance(p, WedgeBlade):
+                    a = math.radians(p.half_angle)
+                    geo[t, k, 6:8] = (math.cos(a), math.sin(a))
+        return {"kind": kind, "geo": geo, "n_prims": n_prims, "bound2": bound2, "friction": fric,
+                "n_tools": np.int32(len(self.names))}
+
+    def surface_points(self, name: str, row: np.ndarray) -> np.ndarray:
+        """(T, 3) float32 surface points of tool ``name`` with state row (x, y, z, yaw, spin, aperture)."""
+        pts, side = self.templates[name]
+        if side.any():
+            pts = pts.copy()
+            pts[:, 0] += side * (row[5] / 2)
+        rot = quat_to_matrix(tool_quat(row[3], row[4]))
+        return (pts @ rot.T + np.asarray(row[:3], dtype=np.float64)).astype(np.float32)
+
+
+def tool_shapes(spec: ToolSpec, pose: np.ndarray, aperture: float | None = None) -> list[tuple[str, str, tuple, np.ndarray, np.ndarray]]:
+    """Viewer shapes of a tool at ``pose`` (7,) (position + quaternion w, x, y, z): a list of
+    (entity name, ``"cube"`` | ``"cylinder"``, full size (3,), world centre (3,), quaternion (4,)).
+    One shape keeps the tool's name; several are named ``name.0``, ``name.1``, ..."""
+    pose = np.asarray(pose, dtype=np.float64)
+    quat = pose[3:7]
+    rot = quat_to_matrix(quat)
+    shapes = spec.draw(aperture)
+    out = []
+    for i, (kind, size, offset) in enumerate(shapes):
+        name = spec.name if len(shapes) == 1 else f"{spec.name}.{i}"
+        centre = pose[:3] + rot @ np.asarray(offset, dtype=np.float64) if any(offset) else pose[:3].copy()
+        out.append((name, kind, tuple(size), centre, quat))
+    return out

@@ -24,7 +24,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from pasta.core import InputError, SimulationError, Skill
+from pasta.core import InputError, SimulationError, Skill, TaskScore
+from pasta.core import Task as TaskInterface
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.tasks.npz import read_npz, write_npz
 
@@ -153,6 +154,8 @@ class TaskInstance:
         arrays: dict[str, np.ndarray] = {
             "init_x": init.x, "init_v": init.v, "init_F": init.F, "init_C": init.C,
             "init_tools": init.tools, "obs_index": init.obs_index, "goal_state": self.goal_state,
+            # rows of init_tools by name: the instance loads into a simulator with more (or other) tools
+            "init_tool_names": np.array(list(init.tool_names), dtype=str),
         }
         for i, p in enumerate(self.pieces):
             arrays[f"piece_{i}"] = np.asarray(p, np.int64)
@@ -178,6 +181,7 @@ class TaskInstance:
             F=arrays["init_F"].astype(np.float32), C=arrays["init_C"].astype(np.float32),
             tools=arrays["init_tools"].astype(np.float64), obs_index=arrays["obs_index"].astype(np.int64),
             step=int(header["init_step"]),
+            tool_names=tuple(str(t) for t in arrays["init_tool_names"]) if "init_tool_names" in arrays else (),
         )
         steps = []
         for h, c in enumerate(header["chain"]):
@@ -197,29 +201,20 @@ class TaskInstance:
         return cls.from_arrays(read_npz(path))
 
 
-@dataclass
-class Score:
-    """EMD to the goal before and after, the normalised improvement and success."""
-
-    emd_initial: float
-    emd_final: float
-    improvement: float
-    success: bool
+#: EMD to the goal before and after, the normalised improvement and success (:class:`pasta.core.TaskScore`)
+Score = TaskScore
 
 
-class Task:
-    """Base of every task. Subclasses set :attr:`name`, :attr:`skills` and implement :meth:`build`.
+class Task(TaskInterface):
+    """Base of the simulator tasks (implements :class:`pasta.core.Task`). Subclasses set :attr:`name`,
+    :attr:`skeleton` and implement :meth:`build`, which runs scripted experts to make the goal.
 
     Args:
         config: the task's config dataclass (defaults when ``None``).
         sim_config: a :class:`pasta.sim.SimConfig` (defaults when ``None``).
     """
 
-    name: ClassVar[str] = ""
     config_class: ClassVar[type] = TaskConfig
-    #: skills the ground-truth chain uses, in order
-    skeleton: ClassVar[tuple[str, ...]] = ()
-    summary: ClassVar[str] = ""
 
     def __init__(self, config: Any = None, sim_config: Any = None) -> None:
         from pasta.sim import SimConfig
@@ -229,10 +224,6 @@ class Task:
         self._skills: dict[str, Skill] = {}
 
     # -- pieces of the machinery ---------------------------------------------------------------
-    @property
-    def horizon(self) -> int:
-        return len(self.skeleton)
-
     @property
     def threshold(self) -> float:
         return float(self.config.threshold)

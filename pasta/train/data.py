@@ -69,7 +69,10 @@ def read_manifest(data_dir: str | Path) -> dict:
         raise InputError(f"dataset directory {d} does not exist: generate demonstrations with `pasta demos` first")
     path = d / "manifest.json"
     if not path.is_file():
-        raise InputError(f"{d} is not a pasta dataset: no manifest.json (written by `pasta demos`)")
+        skills = sorted(p.name for p in d.iterdir() if p.is_dir() and any(p.glob("demo_*.npz")))
+        fix = (f"`pasta demos skill={skills[0]} num=N out={d}` writes it (existing demo files are kept)" if skills
+               else f"generate demonstrations into it with `pasta demos skill=NAME out={d}`")
+        raise InputError(f"{d} is not a pasta dataset: no manifest.json; {fix}")
     try:
         return json.loads(path.read_text())
     except json.JSONDecodeError as exc:
@@ -135,7 +138,8 @@ def load_demos(data_dir: str | Path, skills: Iterable[str] | None = None) -> lis
     paths = demo_paths(data_dir, skills)
     if not paths:
         which = f" of skill(s) {', '.join(skills)}" if skills else ""
-        raise InputError(f"no demonstrations{which} under {data_dir} (expected <skill>/demo_00000.npz files)")
+        fix = f"; generate them with `pasta demos skill={skills[0]} out={data_dir}`" if skills else ""
+        raise InputError(f"no demonstrations{which} under {data_dir} (expected <skill>/demo_00000.npz files){fix}")
     return [load_demo(p) for p in paths]
 
 

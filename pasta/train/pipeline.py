@@ -3,15 +3,22 @@
 Units run in this order, each one a ``pasta demos`` or ``pasta train`` call, or for the last two stages
 ``python -m pasta.policy.reset`` / ``python -m pasta.policy.select``::
 
-    demos/<skill> (+ demos/push-wide) -> vae -> feasibility/<skill> -> cost -> policy/<skill>
-        -> reset/cut -> select/cut, select/roll
+    demos/<skill> (+ demos/<skill>-<variant>) -> vae -> feasibility/<skill> -> cost -> policy/<skill>
+        -> reset/<skill> -> select/<skill>
 
-``reset/<skill>`` trains the learned reset (start) pose of a policy (:mod:`pasta.policy.reset`; cut only by
-default, ``reset_skills=``) into ``OUT/policy/<skill>/reset.*``; ``select/<skill>`` chooses the policy's
-stopping rule on the validation configs (seed 2000) and writes it into its ``model.json``
-(:mod:`pasta.policy.select`; cut and roll by default, ``select_skills=``), with the per-config results in
-``OUT/policy/<skill>/select.json``. Both run after every policy unit, so a cut rule is chosen with the
-cut's reset pose in place.
+The skills are every registered skill that can make demonstrations (:func:`pasta.demos.demo_skills`)
+unless ``skills=`` names some. Each skill's plugin brings its own settings
+(:attr:`pasta.core.Skill.training_defaults`, applied over :data:`STAGE_DEFAULTS`) and the scene variants
+whose demonstrations the pipeline adds after the default ones (:attr:`pasta.core.DemoVariant.pipeline_demos`,
+unit ``demos/<skill>-<variant>``, e.g. push's ``demos/push-wide``).
+
+``reset/<skill>`` trains the learned reset (start) pose of a policy (:mod:`pasta.policy.reset`; by default
+for the skills whose ``training_defaults`` list ``reset``, ``reset_skills=``) into
+``OUT/policy/<skill>/reset.*``; ``select/<skill>`` chooses the policy's stopping rule on the validation
+configs (seed 2000) and writes it into its ``model.json`` (:mod:`pasta.policy.select`; by default for the
+skills that list ``select``, ``select_skills=``), with the per-config results in
+``OUT/policy/<skill>/select.json``. Both run after every policy unit, so a rule is chosen with the
+skill's reset pose in place.
 
 Resuming. ``OUT/pipeline.json`` records, per unit, the settings it was (or is being) produced with: the
 resolved trainer configuration (less ``progress``, ``threads``, ``resume`` and ``workers``, which do
@@ -46,8 +53,8 @@ from typing import Any
 
 from pasta.core.errors import ConfigError, did_you_mean
 
-__all__ = ["PipelineConfig", "Unit", "UnitResult", "STAGES", "STAGE_DEFAULTS", "SKILL_DEFAULTS", "FIGURES",
-           "parse_arguments", "plan", "run_pipeline", "summary_table"]
+__all__ = ["PipelineConfig", "Unit", "UnitResult", "STAGES", "STAGE_DEFAULTS", "FIGURES", "parse_arguments",
+           "plan", "run_pipeline", "skill_defaults", "summary_table"]
 
 FORMAT = "pasta-pipeline/1"
 RECORD = "pipeline.json"
@@ -71,21 +78,8 @@ STAGE_DEFAULTS: dict[str, dict[str, Any]] = {
     "reset": {"epochs": 45, "start_step": 0, "points": 1000, "threads": 1},
     "select": {"n": 20, "seed": 2000, "write": True, "threads": 1},
 }
-#: pipeline defaults per stage and skill (over :data:`STAGE_DEFAULTS`, under every command-line key)
-SKILL_DEFAULTS: dict[str, dict[str, dict[str, Any]]] = {
-    # roll: near-miss negatives (outputs shifted 3-10 cm from where the roll leaves the dough); chosen on
-    # the crs validation configs (docs/learning.md)
-    "feasibility": {"cut": {"stride": 3}, "push": {"stride": 4, "epochs": 20},
-                    "roll": {"stride": 4, "epochs": 20, "shift_per_positive": 5}},
-    # the shipped cut and roll policies see the execution step and the tool pose (docs/policies.md); their
-    # stopping rule is chosen afterwards on validation configs (stage select); the cut policy learns from
-    # its reset pose on (the align phase, which the learned reset pose replaces, dropped from the demos)
-    "policy": {"cut": {"step_feature": True, "pose_feature": True, "start_at_reset": True},
-               "roll": {"step_feature": True, "pose_feature": True}},
-    # the grids the shipped rules were chosen from (docs/policies.md, "Choosing the stopping rule")
-    "select": {"cut": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},
-               "roll": {"thresholds": "0.3,0.4,0.5,0.6,0.7,0.8", "min_steps": "1,20", "max_steps": "0,60"}},
-}
+#: value of ``skills``, ``reset_skills`` and ``select_skills`` that means "what the skill plugins ask for"
+AUTO = "auto"
 #: the held-out figure reported for each stage (a key of its metrics.json)
 FIGURES = {"vae": "heldout_chamfer_mean", "feasibility": "heldout_auc_hard", "cost": "heldout_spearman",
            "policy": "heldout_action", "reset": "heldout_mae_m", "select": "mean_ni"}
@@ -111,14 +105,18 @@ class PipelineConfig:
         data: dataset directory (written by the demos stage, read by the others).
         out: models root; also holds ``pipeline.json``.
         num_demos: demonstrations per skill (``demos.num``).
-        wide_push_demos: push demonstrations of ``pasta demos scene=wide`` added after the default
-            ones (unit ``demos/push-wide``; 0: none).
+        variant_demos: demonstrations per scene variant a skill declares for the pipeline
+            (:attr:`pasta.core.DemoVariant.pipeline_demos`, e.g. push's 150 ``scene=wide``), added after
+            the default ones (unit ``demos/<skill>-<variant>``); -1: each variant's own number; 0: none.
         workers: demo generation processes (``demos.workers``).
         stages: comma-separated stages to run, of demos, vae, feasibility, cost, policy, reset, select.
-        skills: comma-separated skills for the per-skill stages (demos, feasibility, policy, reset, select).
-        reset_skills: the skills of ``skills`` whose policy gets a learned reset pose (stage ``reset``).
+        skills: comma-separated skills for the per-skill stages (demos, feasibility, policy, reset, select);
+            ``auto``: every registered skill that can make demonstrations.
+        reset_skills: the skills of ``skills`` whose policy gets a learned reset pose (stage ``reset``);
+            ``auto``: those whose plugin lists ``reset`` in its ``training_defaults``; empty: none.
         select_skills: the skills of ``skills`` whose policy's stopping rule is chosen on validation
-            configs (stage ``select``); the others keep the default rule.
+            configs (stage ``select``; the others keep the default rule); ``auto``: those whose plugin
+            lists ``select``; empty: none.
         force: rerun every selected unit, done or not (demonstrations are never deleted).
         only: comma-separated units or stages to run, e.g. ``feasibility/cut,cost`` (empty: all).
         progress: draw the inner progress bars (stderr).
@@ -127,12 +125,12 @@ class PipelineConfig:
     data: str = "data/demos"
     out: str = "models"
     num_demos: int = 200
-    wide_push_demos: int = 150
+    variant_demos: int = -1
     workers: int = 2
     stages: str = ",".join(STAGES)
-    skills: str = "cut,push,roll"
-    reset_skills: str = "cut"
-    select_skills: str = "cut,roll"
+    skills: str = AUTO
+    reset_skills: str = AUTO
+    select_skills: str = AUTO
     force: bool = False
     only: str = ""
     progress: bool = True
@@ -180,6 +178,34 @@ def _known_skills() -> list[str]:
     from pasta.plugins import get_plugins
 
     return list(get_plugins().skills.names())
+
+
+def _skill_class(name: str) -> type:
+    from pasta.plugins import get_plugins
+
+    return get_plugins().skills.load(name)
+
+
+def skill_defaults(stage: str, skill: str | None) -> dict[str, Any]:
+    """The pipeline settings the plugin of ``skill`` asks for in ``stage`` (its ``training_defaults``)."""
+    if not skill:
+        return {}
+    return dict(_skill_class(skill).training_defaults.get(stage) or {})
+
+
+def _skills(cfg: PipelineConfig) -> list[str]:
+    """``skills=`` as names; ``auto``: the registered skills that can make demonstrations."""
+    if str(cfg.skills).strip() == AUTO:
+        from pasta.demos import demo_skills
+
+        names = demo_skills()
+        if not names:
+            raise ConfigError("no registered skill can make demonstrations (none defines demo_scene and an expert); "
+                              "name the skills with skills=")
+        return names
+    names = _names(cfg.skills, "skills")
+    _check_names(names, _known_skills(), "skill")
+    return names
 
 
 def _check_names(names: Sequence[str], known: Sequence[str], what: str) -> None:
@@ -234,6 +260,8 @@ def parse_arguments(items: Sequence[str] | Mapping[str, Any]) -> tuple[PipelineC
                           f"(stages: {', '.join(STAGES)})") from None
     if cfg.num_demos < 1 or cfg.workers < 0:
         raise ConfigError(f"num_demos must be >= 1 and workers >= 0, got {cfg.num_demos} and {cfg.workers}")
+    if cfg.variant_demos < -1:
+        raise ConfigError(f"variant_demos must be >= 0, or -1 for each variant's own number, got {cfg.variant_demos}")
     return cfg, overrides
 
 
@@ -248,7 +276,7 @@ def _unit_values(cfg: PipelineConfig, overrides: Overrides, stage: str, skill: s
     else:
         values["progress"] = cfg.progress
     values.update(STAGE_DEFAULTS.get(stage, {}))
-    values.update(SKILL_DEFAULTS.get(stage, {}).get(skill or "", {}))
+    values.update(skill_defaults(stage, skill))
     values.update(overrides.get((stage, None), {}))
     values.update(overrides.get((stage, skill), {}) if skill else {})
     return values
@@ -299,21 +327,33 @@ def _subset(cfg: PipelineConfig, stage: str, skills: Sequence[str]) -> list[str]
     key = SKILL_SUBSETS.get(stage)
     if key is None:
         return list(skills)
+    if str(getattr(cfg, key)).strip() == AUTO:
+        return [s for s in skills if stage in _skill_class(s).training_defaults]
     names = [n.strip() for n in str(getattr(cfg, key)).split(",") if n.strip()]
     _check_names(names, _known_skills(), "skill")
     return [s for s in skills if s in names]
+
+
+def _variant_units(cfg: PipelineConfig, skill: str, values: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """``(unit name, values)`` of the scene-variant demos a skill declares, appended after its default ones."""
+    out = []
+    for variant, decl in _skill_class(skill).demo_variants.items():
+        num = decl.pipeline_demos if cfg.variant_demos < 0 else cfg.variant_demos
+        if num > 0:
+            out.append((f"demos/{skill}-{variant}", {**values, "num": int(values["num"]) + num, "scene": variant}))
+    return out
 
 
 def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
     """Every selected unit, in order, with its configuration built (and so validated)."""
     stages = _names(cfg.stages, "stages")
     _check_names(stages, STAGES, "stage")
-    skills = _names(cfg.skills, "skills")
-    _check_names(skills, _known_skills(), "skill")
+    skills = _skills(cfg)
     if "demos" in stages:
-        from pasta.demos.generate import DEMO_SKILLS
+        from pasta.demos import check_demo_skill
 
-        _check_names(skills, [s for s in DEMO_SKILLS if s in _known_skills()], "demonstration skill")
+        for skill in skills:
+            check_demo_skill(skill)
     for stage, skill in overrides:
         if stage not in stages:
             print(f"pasta pipeline: warning: {stage}.* settings given but stage {stage} is not in "
@@ -331,11 +371,10 @@ def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
             except ConfigError as exc:
                 raise ConfigError(f"{name}: {exc}") from None
             units.append(Unit(name, stage, skill, values, configs, _directory(cfg, stage, skill)))
-            if stage == "demos" and skill == "push" and cfg.wide_push_demos > 0:
-                # long pushes of bigger pieces (what cut_rearrange needs), appended after the default ones
-                wide = {**values, "num": int(values["num"]) + cfg.wide_push_demos, "scene": "wide"}
-                units.append(Unit("demos/push-wide", stage, skill, wide, _build(stage, skill, wide),
-                                  _directory(cfg, stage, skill)))
+            if stage == "demos":
+                for vname, vvalues in _variant_units(cfg, str(skill), values):
+                    units.append(Unit(vname, stage, skill, vvalues, _build(stage, skill, vvalues),
+                                      _directory(cfg, stage, skill)))
     if cfg.only:
         wanted = _names(cfg.only, "only")
         known = [u.name for u in units] + [s for s in stages]

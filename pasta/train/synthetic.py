@@ -10,7 +10,10 @@ at y = 0.0269), and each demonstration interpolates particle positions over ``st
   keeping its volume.
 
 The tool is a small point template following a plausible path; actions are its velocity. This data is
-for tests and for measuring the learning pipeline before simulator demonstrations exist.
+for tests and for measuring the learning pipeline before simulator demonstrations exist. The three
+generators imitate the built-in skills' geometry and their names only label the dataset folders: this
+module never consults the plugin registry (demonstrations of any registered skill come from
+``pasta demos``, :mod:`pasta.demos`).
 """
 
 from __future__ import annotations

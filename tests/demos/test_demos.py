@@ -13,17 +13,19 @@ from pasta.demos import DemoConfig, generate_demos, validate
 
 
 def test_bad_arguments_fail_before_any_work(tmp_path, capsys):
-    with pytest.raises(ConfigError, match="unknown skill 'knead'.*known skills: cut, push, roll"):
+    with pytest.raises(ConfigError, match="unknown skill 'knead'.*skills with demonstrations: cut, push, roll"):
         validate(DemoConfig(skill="knead", out=str(tmp_path)))
+    with pytest.raises(ConfigError, match="needs skill=NAME; skills with demonstrations: cut, push, roll"):
+        validate(DemoConfig(out=str(tmp_path)))
     with pytest.raises(ConfigError, match="num must be >= 1"):
-        validate(DemoConfig(num=0, out=str(tmp_path)))
+        validate(DemoConfig(skill="cut", num=0, out=str(tmp_path)))
     blocker = tmp_path / "file"
     blocker.write_text("x")
     with pytest.raises(ConfigError, match="cannot write"):
-        validate(DemoConfig(out=str(blocker / "sub")))
+        validate(DemoConfig(skill="cut", out=str(blocker / "sub")))
     assert main(["demos", "skill=knead", f"out={tmp_path}"]) == 2
-    assert "known skills" in capsys.readouterr().err
-    assert main(["demos", "num=-3", f"out={tmp_path}"]) == 2
+    assert "skills with demonstrations: cut, push, roll" in capsys.readouterr().err
+    assert main(["demos", "skill=cut", "num=-3", f"out={tmp_path}"]) == 2
     assert main(["demos", "bogus=1"]) == 2
     assert not list(tmp_path.glob("*/demo_*.npz"))
 
@@ -65,5 +67,10 @@ def test_generate_and_load_three_demos(tmp_path):
 def test_reader_errors(tmp_path):
     from pasta.train.data import load_demos
 
-    with pytest.raises(InputError, match="not a pasta dataset: no manifest.json"):
+    with pytest.raises(InputError, match="not a pasta dataset: no manifest.json; generate demonstrations"):
+        load_demos(tmp_path)
+    (tmp_path / "knead").mkdir()
+    (tmp_path / "knead" / "demo_00000.npz").write_bytes(b"")
+    # a folder of demonstrations without its manifest: the error names the command that writes it
+    with pytest.raises(InputError, match=f"`pasta demos skill=knead num=N out={tmp_path}` writes it"):
         load_demos(tmp_path)

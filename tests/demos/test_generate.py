@@ -1,25 +1,70 @@
-"""Scene options of `pasta demos`: the wide push scene and its validation (no simulator)."""
+"""Demonstration scenes come from the skill plugins: hooks, variants and their validation (no simulator)."""
 
 import numpy as np
 import pytest
 
-from pasta.core.errors import ConfigError, InputError
-from pasta.demos.generate import DemoConfig, demo_scene, validate
+from pasta.core import Skill, SkillSpec
+from pasta.core.errors import ConfigError, InputError, MissingComponentError
+from pasta.demos import demo_skills, scene_boxes, scene_particles, variants
+from pasta.demos.generate import DemoConfig, skill_config, validate
+from pasta.plugins import get_plugins
+
+
+def test_builtin_skills_make_demonstrations_and_base_skill_does_not():
+    assert demo_skills() == ["cut", "push", "roll"]
+
+    class Bare(Skill):
+        spec = SkillSpec("bare", 1, 1, "pusher")
+
+    assert not Bare.has_expert() and Bare.missing_demo_hooks() == list(Skill.DEMO_HOOKS)
+    with pytest.raises(MissingComponentError, match="skill 'bare' has no demonstration scene"):
+        Bare().demo_scene(np.random.default_rng(0), 0.0)
+    with pytest.raises(MissingComponentError, match="skill 'bare' has no scripted expert"):
+        Bare().expert_approach_pose(np.zeros((4, 3)), {})
 
 
 def test_wide_push_scene_covers_the_right_of_the_workspace():
+    push = get_plugins().skills.create("push")
     rng = np.random.default_rng(0)
-    boxes = [demo_scene("push", rng, 0.0, "wide")[0] for _ in range(200)]
+    boxes = [scene_boxes(push, rng, 0.0, "wide")[0] for _ in range(200)]
     xs = np.array([c[0] for c, _ in boxes])
     lengths = np.array([s[0] for _, s in boxes])
     assert xs.max() > 0.75 and lengths.max() > 0.2  # default push pieces start at x <= 0.7, length <= 0.12
     assert np.all(xs + lengths / 2 <= 0.93 + 1e-9)
+    # the variant also widens the expert's target box (declared by the plugin, applied by pasta.demos)
+    assert skill_config("push", "wide").target_x_max == 0.7 and skill_config("push").target_x_max == 0.32
 
 
-def test_wide_scene_is_for_push_only(tmp_path):
-    with pytest.raises(InputError, match="push"):
-        demo_scene("cut", np.random.default_rng(0), 0.0, "wide")
+def test_scene_variants_are_checked(tmp_path):
+    cut = get_plugins().skills.create("cut")
+    assert variants(type(cut)) == ["default"] and variants(get_plugins().skills.load("push")) == ["default", "wide"]
+    with pytest.raises(ConfigError, match="skill 'cut' has no demonstration scene 'wide'; its scenes: default"):
+        scene_boxes(cut, np.random.default_rng(0), 0.0, "wide")
     with pytest.raises(ConfigError, match="scene"):
         validate(DemoConfig(skill="cut", out=str(tmp_path), scene="wide"))
-    with pytest.raises(ConfigError, match="scene"):
+    with pytest.raises(ConfigError, match="its scenes: default, wide"):
         validate(DemoConfig(skill="push", out=str(tmp_path), scene="wider"))
+
+
+def test_scene_boxes_must_match_the_skill_cardinality():
+    class TwoIn(Skill):
+        spec = SkillSpec("two_in", 2, 1, "pusher")
+
+        def demo_scene(self, rng, floor_y, variant="default"):
+            return [((0.5, floor_y + 0.04, 0.5), (0.1, 0.08, 0.08))]
+
+    with pytest.raises(InputError, match="consumes 2 piece\\(s\\) but its demo_scene returned 1 box"):
+        scene_boxes(TwoIn(), np.random.default_rng(0), 0.0)
+
+
+def test_scene_particles_split_by_volume_and_one_box_is_box_particles():
+    from pasta.sim import box_particles
+
+    box = ((0.5, 0.06, 0.5), (0.1, 0.08, 0.07))
+    one, owner = scene_particles([box], 500, np.random.default_rng(3))
+    assert np.array_equal(one, box_particles(*box, 500, np.random.default_rng(3))) and (owner == 0).all()
+    big = ((0.3, 0.06, 0.5), (0.2, 0.08, 0.07))
+    pts, owner = scene_particles([box, big], 900, np.random.default_rng(3))
+    assert pts.shape == (900, 3) and pts.dtype == np.float32
+    assert np.bincount(owner).tolist() == [300, 600]
+    assert np.all(np.abs(pts[owner == 1, 0] - 0.3) <= 0.1 + 1e-6)

@@ -39,9 +39,33 @@ def test_session_rejects_unknown_method_task_and_skeleton():
         build_session("crs", method="oracle", skeleton="maybe")
 
 
+def test_session_skills_choose_the_set_and_the_task_chain_must_fit(tmp_path, capsys):
+    from pasta.commands.run import print_skill_warning
+    from pasta.core.errors import PluginNotFoundError
+
+    session = build_session("crs", skills="cut,push,roll")
+    assert [s.name for s in session.skills] == ["cut", "push", "roll"] and session.describe()["skills"] == ["cut", "push", "roll"]
+    with pytest.raises(ConfigError, match=r"task 'crs' \(its ground-truth chain\) needs the skills cut, push, roll; "
+                                          r"left out: 'roll': not in skills="):
+        build_session("crs", skills="cut,push")
+    with pytest.raises(PluginNotFoundError, match="known skills: cut, push, roll"):
+        build_session("crs", skills="cut,pusj,roll")
+    # a models root where roll has no feasibility network: left out with one warning line, so crs cannot run
+    for rel in ("feasibility/cut", "feasibility/push"):
+        (tmp_path / rel).mkdir(parents=True)
+        (tmp_path / rel / "model.safetensors").write_text("")
+        (tmp_path / rel / "model.json").write_text("")
+    with pytest.raises(ConfigError, match=r"left out: 'roll': feasibility network .*pasta train feasibility"):
+        build_session("crs", models=str(tmp_path))
+    oracle = build_session("crs", method="oracle", skills="cut")  # the oracle plans nothing: skills= is not used
+    print_skill_warning(oracle)
+    assert capsys.readouterr().err == ""
+
+
 class _FakeSession:
     def __init__(self, task):
         self.task, self.method, self.exe = task, "pasta", argparse.Namespace(controller="heuristic")
+        self.skill_choice = None
         self.calls = []
 
     def describe(self):

@@ -16,6 +16,10 @@ from pasta.io import replay
 class FakeConfig:
     gain: float = 1.0
 
+    @classmethod
+    def from_dict(cls, d):  # as SimConfig.from_dict, which replay uses
+        return cls(**d)
+
 
 class FakeState:
     def __init__(self, x):

@@ -85,3 +85,23 @@ def test_impossible_goal_is_a_clear_error(tmp_path, analytic_plugins, capsys):
     obs, goal = _clouds(tmp_path)
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *ARGS, "horizon=1", "skills=move,flatten"]) == 2
     assert "2 goal entities" in capsys.readouterr().err
+
+
+def test_skill_choice_is_the_same_rule_as_run(tmp_path, analytic_plugins, monkeypatch, capsys):
+    """Without skills=, skills lacking trained weights are left out with one warning line (the shipped root
+    here is empty, so cut, push and roll go; the analytic skills compute their own feasibility)."""
+    import pasta.weights
+
+    obs, goal = _clouds(tmp_path)
+    monkeypatch.setattr(pasta.weights, "ROOT", tmp_path / "no_weights")
+    args = [a for a in ARGS if not a.startswith("skills=")]
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'o'}", *args]) == 0
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning: skills")]
+    assert len(err) == 1 and "left out: cut, push, roll" in err[0] and "pasta train feasibility" in err[0]
+    assert Plan.from_json((tmp_path / "o" / "plan.json").read_text()).skills == ("split", "move", "flatten")
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skills=split,move,cut"]) == 2
+    assert "skill 'cut' has no feasibility network" in capsys.readouterr().err
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skills=split,mvoe"]) == 2
+    assert "unknown skill 'mvoe'; did you mean 'move'?" in capsys.readouterr().err
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skeleton=cut,move,flatten"]) == 2
+    assert "skeleton= needs the skills cut, move, flatten; left out: 'cut': feasibility network" in capsys.readouterr().err

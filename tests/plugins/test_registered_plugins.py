@@ -15,4 +15,4 @@ def test_registered_skill_conforms(name):
 
 @pytest.mark.parametrize("name", PLUGINS.planners.names())
 def test_registered_planner_conforms(name):
-    check_planner(configured(PLUGINS.planners, name, small_budget(PLUGINS.planners, name)))
+    check_planner(configured(PLUGINS.planners, name, small_budget(PLUGINS.planners, name)), name=name)

@@ -48,7 +48,7 @@ def test_load_rejects_factory_not_honouring_contract():
     with pytest.raises(PluginValidationError, match="differs from the registered"):
         bad_spec.load()
     wrong_base = PluginInfo("planner", "x", "pasta.plugins.analytic:MoveSkill")
-    with pytest.raises(PluginValidationError, match="not a Planner subclass"):
+    with pytest.raises(PluginValidationError, match="not a pasta.core.Planner subclass"):
         wrong_base.load()
     missing = PluginInfo("skill", "move", "pasta.plugins.nowhere:Nothing", spec=MoveSkill.spec, plugin="p", distribution="d")
     with pytest.raises(PluginValidationError, match="cannot import factory 'pasta.plugins.nowhere:Nothing'"):

@@ -2,7 +2,6 @@
 
 import subprocess
 import sys
-import textwrap
 
 import pytest
 
@@ -15,7 +14,7 @@ from dataclasses import dataclass
 
 import torch
 
-from pasta.core import Planner, PluginConfig, Skill, SkillSpec
+from pasta.core import Planner, PluginConfig, Skill, SkillSpec, ToolSpec
 from pasta.plugins import hookimpl
 
 SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="gripper", description="squeeze two pieces into one")
@@ -42,6 +41,11 @@ class BeamPlanner(Planner):
 
 
 @hookimpl
+def pasta_register_tools(register):
+    register(spec=ToolSpec("gripper", description="two-finger parallel gripper"))
+
+
+@hookimpl
 def pasta_register_skills(register):
     register(spec=SPEC, factory="pinch_plugin:PinchSkill")
 
@@ -52,22 +56,12 @@ def pasta_register_planners(register):
 '''
 
 
-def make_distribution(root, dist, module, source, entry="pinch"):
-    info = root / f"{dist.replace('-', '_')}-0.3.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.3\n")
-    (info / "entry_points.txt").write_text(f"[pasta.plugins]\n{entry} = {module}\n")
-    (root / f"{module}.py").write_text(textwrap.dedent(source))
-
-
 @pytest.fixture
-def pinch_dist(tmp_path):
-    make_distribution(tmp_path, "pinch-pkg", "pinch_plugin", PINCH_MODULE)
-    return tmp_path
+def pinch_dist(make_dist):
+    return make_dist("pinch-pkg", "pinch_plugin", PINCH_MODULE)
 
 
 def test_third_party_skill_and_planner_appear_and_disappear(pinch_dist, monkeypatch, fresh_plugins, capsys):
-    monkeypatch.syspath_prepend(str(pinch_dist))
     plugins = fresh_plugins()
     info = plugins.skills.info("pinch")
     assert (info.spec.n_in, info.spec.n_out, info.distribution, info.version) == (2, 1, "pinch-pkg", "0.3")
@@ -93,9 +87,8 @@ def test_third_party_plugin_listed_by_cli_subprocess(pinch_dist):
     assert "pinch" in out.stdout and "pinch-pkg" in out.stdout
 
 
-def test_broken_plugin_is_reported_and_others_load(tmp_path, monkeypatch, fresh_plugins):
-    make_distribution(tmp_path, "broken-pkg", "broken_plugin", "import does_not_exist_anywhere\n", entry="broken")
-    monkeypatch.syspath_prepend(str(tmp_path))
+def test_broken_plugin_is_reported_and_others_load(make_dist, fresh_plugins):
+    make_dist("broken-pkg", "broken_plugin", "import does_not_exist_anywhere\n", entry="broken")
     with pytest.warns(PluginLoadWarning, match=r"plugin 'broken' from distribution 'broken-pkg'.*does_not_exist_anywhere"):
         plugins = fresh_plugins()
     assert [(f.plugin, f.distribution) for f in plugins.failures] == [("broken", "broken-pkg")]
@@ -103,10 +96,9 @@ def test_broken_plugin_is_reported_and_others_load(tmp_path, monkeypatch, fresh_
     assert "exhaustive" in plugins.planners
 
 
-def test_misspelled_hook_is_rejected_at_load(tmp_path, monkeypatch, fresh_plugins):
+def test_misspelled_hook_is_rejected_at_load(make_dist, fresh_plugins):
     source = "from pasta.plugins import hookimpl\n\n@hookimpl\ndef pasta_register_skils(register):\n    pass\n"
-    make_distribution(tmp_path, "typo-pkg", "typo_plugin", source, entry="typo")
-    monkeypatch.syspath_prepend(str(tmp_path))
+    make_dist("typo-pkg", "typo_plugin", source, entry="typo")
     with pytest.warns(PluginLoadWarning, match="pasta_register_skils"):
         plugins = fresh_plugins()
     assert plugins.failures[0].plugin == "typo"

@@ -19,7 +19,8 @@ def sim() -> Simulator:
 def fresh(sim):
     """The session simulator with default parameters restored; returns it."""
     cfg = SimConfig()
-    sim.set_params(**{k: getattr(cfg, k) for k in sim.params})
+    sim.set_params(**{k: getattr(cfg, k) for k in sim.params},
+                   **{f"{k}_friction": sim.tool_spec(k).friction for k in sim.tool_names})
     return sim
 
 

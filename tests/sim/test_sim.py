@@ -7,8 +7,6 @@ import pytest
 
 from pasta.core.errors import ConfigError
 from pasta.sim import (
-    TOOL_ACTION_DIMS,
-    TOOL_NAMES,
     SimConfig,
     SimState,
     SimulationDiverged,
@@ -128,7 +126,7 @@ def test_snapshot_restore_bitwise(fresh, helpers, tmp_path):
     x2, o2 = sim.particles(), sim.observe()
     assert np.array_equal(x1, x2)
     assert np.array_equal(o1.dough, o2.dough) and np.array_equal(o1.dough_index, o2.dough_index)
-    for k in TOOL_NAMES:
+    for k in sim.tool_names:
         assert np.array_equal(o1.tool_poses[k], o2.tool_poses[k])
     # npz round trip, no pickle
     path = tmp_path / "state.npz"
@@ -160,8 +158,8 @@ def test_observation_and_tools(fresh, helpers):
     assert obs.dough.shape == (1000, 3) and obs.dough.dtype == np.float32
     assert obs.dough_index.shape == (1000,)
     assert np.array_equal(obs.dough, sim.particles()[obs.dough_index])
-    assert set(obs.tool_poses) == set(TOOL_NAMES) == set(obs.tool_points)
-    for k in TOOL_NAMES:
+    assert set(obs.tool_poses) == set(sim.tool_names) == set(obs.tool_points)
+    for k in sim.tool_names:
         assert obs.tool_poses[k].shape == (7,)
         assert 50 <= obs.tool_points[k].shape[0] <= 200
         assert obs.tool_points[k][:, 1].min() > 0.5  # parked high up
@@ -190,7 +188,7 @@ def test_bad_inputs(fresh, helpers):
     with pytest.raises(ValueError, match="knife"):
         sim.step({"knife": [0.0, 0.0, 0.0]})
     with pytest.raises(ValueError):
-        sim.step({"pusher": [np.nan] * TOOL_ACTION_DIMS["pusher"]})
+        sim.step({"pusher": [np.nan] * sim.tool_spec("pusher").action_dim})
     with pytest.raises(ValueError, match="yield_stres"):
         sim.set_params(yield_stres=3.0)
     with pytest.raises(ConfigError, match="nu"):

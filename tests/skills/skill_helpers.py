@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 from pasta.core import SkillObservation
-from pasta.sim.tools import TOOL_ACTION_SCALES
 
 
 def box(centre, size, n=600, seed=0) -> np.ndarray:
@@ -22,7 +21,9 @@ def observation(piece, goal, pose, scene=None) -> SkillObservation:
 def drive(controller, piece, goal, start, tool, max_steps=200):
     """Run ``controller`` with the tool moving kinematically (knife dx, dy; pusher dx, dz; roller roll, dy)."""
     pos = np.array(start, np.float64)
-    scale = TOOL_ACTION_SCALES[tool]
+    from pasta.plugins import get_plugins
+
+    scale = get_plugins().tools.info(tool).spec.action_scales
     obs = observation(piece, goal, pos)
     controller.reset(obs)
     actions = []

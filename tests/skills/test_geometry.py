@@ -90,8 +90,8 @@ def test_cut_expert_aligns_descends_reenters_and_separates(skills):
 
 
 def test_cut_heuristic_separates_at_least_min_travel(skills):
-    from pasta.sim.tools import TOOL_ACTION_SCALES
     from pasta_skill_cut.skill import CutSkill
+    from pasta_skill_cut.tool import KNIFE
 
     piece = box((0.75, FLOOR + 0.04, 0.5), (0.3, 0.08, 0.07), n=3000, seed=3)
     left, right = piece[piece[:, 0] < 0.68], piece[piece[:, 0] >= 0.68]
@@ -101,7 +101,7 @@ def test_cut_heuristic_separates_at_least_min_travel(skills):
         start = skill.approach_pose(piece, goal).position
         # the kinematic stand-in never moves dough, so the heuristic's final fix of the other part runs on
         actions, _, _ = drive(skill.controller(), piece, goal, start, "knife", max_steps=250)
-        return start[0] + np.cumsum([a[0] for a in actions]).min() * TOOL_ACTION_SCALES["knife"][0]
+        return start[0] + np.cumsum([a[0] for a in actions]).min() * KNIFE.scale("x")
 
     cut = skills["cut"]
     knife = plan_from_goal(piece, goal, cut.config).cut_x

@@ -122,11 +122,29 @@ def test_command_line(three_demos, tmp_path, tiny, capsys):
     assert "[1/1] vae done in" in out and "1 ran, 0 skipped" in out
 
 
-def test_demos_stage_adds_the_wide_push_unit():
+def test_demos_stage_adds_the_variant_units_the_skills_declare():
     from pasta.train.pipeline import PipelineConfig, plan
 
-    units = plan(PipelineConfig(stages="demos", num_demos=20, wide_push_demos=5), {})
+    units = plan(PipelineConfig(stages="demos", num_demos=20), {})
     wide = {u.name: u for u in units}["demos/push-wide"]
     assert [u.name for u in units] == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll"]
-    assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (25, "wide", "push")
-    assert "demos/push-wide" not in [u.name for u in plan(PipelineConfig(stages="demos", wide_push_demos=0), {})]
+    assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (170, "wide", "push")
+    wide = {u.name: u for u in plan(PipelineConfig(stages="demos", num_demos=20, variant_demos=5), {})}["demos/push-wide"]
+    assert wide.configs[0].num == 25
+    assert "demos/push-wide" not in [u.name for u in plan(PipelineConfig(stages="demos", variant_demos=0), {})]
+
+
+def test_per_skill_settings_come_from_the_skill_plugins():
+    """The values the shipped models were trained with, now declared by each skill's training_defaults."""
+    from pasta.train.pipeline import PipelineConfig, parse_arguments, plan
+
+    units = {u.name: u for u in plan(PipelineConfig(stages="feasibility,policy"), {})}
+    feas = {s: units[f"feasibility/{s}"].configs[1] for s in ("cut", "push", "roll")}
+    assert [(f.stride, f.shift_per_positive) for f in feas.values()] == [(3, 0), (4, 0), (4, 5)]
+    assert [units[f"feasibility/{s}"].configs[0].epochs for s in ("cut", "push", "roll")] == [30, 20, 20]
+    pol = {s: units[f"policy/{s}"].configs[1] for s in ("cut", "push", "roll")}
+    assert [(p.step_feature, p.pose_feature, p.start_at_reset) for p in pol.values()] == [
+        (True, True, True), (False, False, False), (True, True, False)]
+    # skills= restricts; a command-line key still wins over the plugin's default
+    units = plan(*parse_arguments(["stages=feasibility", "skills=roll", "feasibility.roll.stride=2"]))
+    assert [u.name for u in units] == ["feasibility/roll"] and units[0].configs[1].stride == 2

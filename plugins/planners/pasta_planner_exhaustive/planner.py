@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pasta.core import CardinalityError, PlanningProblem, enumerate_skeletons
-from pasta.planning.planner import LatentPlanner
+from pasta.planning import LatentPlanner
 from pasta_planner_exhaustive.config import ExhaustiveConfig
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pasta.planning.config import HalvingConfig
+from pasta.planning import HalvingConfig
 
 
 @dataclass

@@ -8,8 +8,7 @@ import torch
 
 from pasta.core import Plan, PlanningProblem, kept_indices
 from pasta.core.errors import ConfigError
-from pasta.planning.optimizer import search
-from pasta.planning.planner import LatentPlanner
+from pasta.planning import LatentPlanner, search
 from pasta_planner_receding_horizon.config import RecedingHorizonConfig
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from pasta.planning.config import LatentPlannerConfig
+from pasta.planning import LatentPlannerConfig
 
 
 @dataclass

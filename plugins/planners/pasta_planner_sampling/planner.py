@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from pasta.planning.planner import LatentPlanner
+from pasta.planning import LatentPlanner
 from pasta_planner_sampling.config import SamplingConfig
 
 

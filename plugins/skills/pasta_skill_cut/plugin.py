@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 from pasta.core import SkillSpec
 from pasta.plugins import hookimpl
+from pasta_skill_cut.tool import KNIFE
 
 SPEC = SkillSpec(name="cut", n_in=1, n_out=2, tool="knife", description="cut one dough piece in two with the knife")
 
@@ -71,3 +72,8 @@ class CutConfig:
 @hookimpl
 def pasta_register_skills(register):
     register(spec=SPEC, factory="pasta_skill_cut.skill:CutSkill", config=CutConfig)
+
+
+@hookimpl
+def pasta_register_tools(register):
+    register(spec=KNIFE)

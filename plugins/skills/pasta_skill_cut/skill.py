@@ -26,11 +26,11 @@ import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
-from pasta.sim.tools import KNIFE_HALF, PARK_POSES, TOOL_ACTION_SCALES
 from pasta_skill_cut.plugin import SPEC, CutConfig
+from pasta_skill_cut.tool import KNIFE, KNIFE_HALF, KNIFE_PARK
 
 KNIFE_TIP = KNIFE_HALF[1]  # the blade tip is this far below the knife centre
-STEP = TOOL_ACTION_SCALES["knife"][0]  # metres per env step at action 1
+STEP = KNIFE.scale("x")  # metres per env step at action 1
 FAR_LIMITS = (0.05, 0.95)  # knife centre x the simulator lets the knife reach (3 cells from the walls at 64^3)
 
 
@@ -284,6 +284,15 @@ class CutSkill(Skill):
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "min_travel", "fix_tolerance", "fix_far_side",
                                          "grid_dx", "plane_offset", "plane_slope", "stay_end_offset", "stay_end_slope")
+    #: `pasta pipeline` settings (docs/learning.md, docs/policies.md): the policy sees the execution step and
+    #: the tool pose and learns from its reset pose on (the align phase, which the learned reset pose
+    #: replaces, dropped from the demos); a learned reset pose (stage reset); the stopping-rule grid (select)
+    training_defaults = {
+        "feasibility": {"stride": 3},
+        "policy": {"step_feature": True, "pose_feature": True, "start_at_reset": True},
+        "reset": {},
+        "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},
+    }
 
     def __init__(self, config: CutConfig | None = None) -> None:
         super().__init__(config if config is not None else CutConfig())
@@ -304,7 +313,7 @@ class CutSkill(Skill):
         return self.approach_pose(piece)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in PARK_POSES["knife"]), 0.0)
+        return ToolPose(tuple(float(v) for v in KNIFE_PARK), 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``cut_x``: the piece's left end + U(offset_min, offset_max) (both parts keep >= offset_min);
@@ -324,3 +333,9 @@ class CutSkill(Skill):
 
     def controller(self) -> Controller:
         return CutController(self.config)
+
+    def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
+        """The CRS dough (:func:`pasta.tasks.library.crs_box`): one long box at the right of the workspace."""
+        from pasta.tasks.library import crs_box
+
+        return [crs_box(rng, floor_y)]

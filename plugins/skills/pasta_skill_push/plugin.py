@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 from pasta.core import SkillSpec
 from pasta.plugins import hookimpl
+from pasta_skill_push.tool import PUSHER
 
 SPEC = SkillSpec(name="push", n_in=1, n_out=1, tool="pusher", description="push one dough piece to a new place with the pusher")
 
@@ -49,3 +50,8 @@ class PushConfig:
 @hookimpl
 def pasta_register_skills(register):
     register(spec=SPEC, factory="pasta_skill_push.skill:PushSkill", config=PushConfig)
+
+
+@hookimpl
+def pasta_register_tools(register):
+    register(spec=PUSHER)

@@ -20,12 +20,12 @@ import math
 
 import numpy as np
 
-from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
-from pasta.sim.tools import PARK_POSES, PUSHER_HALF, TOOL_ACTION_SCALES, tool_bounds
 from pasta_skill_push.plugin import SPEC, PushConfig
+from pasta_skill_push.tool import PUSHER, PUSHER_HALF, PUSHER_PARK, pusher_bounds
 
-YAW_STEP = TOOL_ACTION_SCALES["pusher"][3]  # radians per env step at dyaw = 1
+YAW_STEP = PUSHER.scale("yaw")  # radians per env step at dyaw = 1
 #: face normals tried at the approach, as rotations (degrees) of the ideal push direction
 ANGLES = (0, 10, -10, 20, -20, 30, -30, 45, -45, 60, -60)
 
@@ -63,7 +63,7 @@ def placement(piece: np.ndarray, target_xz: np.ndarray, scene: np.ndarray | None
     u = _unit(np.asarray(target_xz, np.float64) - c)
     others = other_dough(piece, scene)[:, [0, 2]]
     y = float(np.percentile(piece[:, 1], 1)) - cfg.sink + PUSHER_HALF[1]
-    lo, hi = tool_bounds("pusher", 1.0 / 64)
+    lo, hi = pusher_bounds(1.0 / 64)
     best, best_clear = None, -np.inf
     slides = [0.0]
     if max_slide > 0:
@@ -155,6 +155,11 @@ class PushSkill(Skill):
     sweep_half_width = PUSHER_HALF[2]  # the paddle spans the piece and more, across the push line
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("max_face_slide", "align_after")
+    #: ``scene=wide``: pieces up to 0.25 long anywhere on the right of the workspace, pushed to targets
+    #: with x up to 0.7 (the default box ends at 0.32), as cut_rearrange needs
+    demo_variants = {"wide": DemoVariant(config={"target_x_max": 0.7}, pipeline_demos=150,
+                                         description="pieces up to 0.25 long on the right, targets with x up to 0.7")}
+    training_defaults = {"feasibility": {"stride": 4, "epochs": 20}}
 
     def __init__(self, config: PushConfig | None = None) -> None:
         super().__init__(config if config is not None else PushConfig())
@@ -173,7 +178,7 @@ class PushSkill(Skill):
         return placement(as_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in PARK_POSES["pusher"]), 0.0)
+        return ToolPose(tuple(float(v) for v in PUSHER_PARK), 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """A target centroid uniform in the config's box, at least ``min_distance`` from the piece."""
@@ -193,3 +198,13 @@ class PushSkill(Skill):
 
     def controller(self) -> Controller:
         return PushController(self.config)
+
+    def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
+        """A small piece right of the spreading area (``"wide"``: a piece 0.1-0.25 long with x in 0.4-0.93)."""
+        from pasta.tasks.library import HEIGHT, small_box
+
+        if variant == "wide":
+            size = (rng.uniform(0.1, 0.25), HEIGHT, rng.uniform(0.06, 0.1))
+            x = rng.uniform(0.4, 0.93 - size[0] / 2)
+            return [((x, floor_y + HEIGHT / 2, rng.uniform(0.3, 0.7)), size)]
+        return [small_box(rng, floor_y, (0.45, 0.7), (0.3, 0.7))]

@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 from pasta.core import SkillSpec
 from pasta.plugins import hookimpl
+from pasta_skill_roll.tool import ROLLER
 
 SPEC = SkillSpec(name="roll", n_in=1, n_out=1, tool="roller", description="roll one dough piece flat with the roller")
 
@@ -63,3 +64,8 @@ class RollConfig:
 @hookimpl
 def pasta_register_skills(register):
     register(spec=SPEC, factory="pasta_skill_roll.skill:RollSkill", config=RollConfig)
+
+
+@hookimpl
+def pasta_register_tools(register):
+    register(spec=ROLLER)

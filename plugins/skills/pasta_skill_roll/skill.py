@@ -25,11 +25,11 @@ import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
-from pasta.sim.tools import PARK_POSES, ROLLER_RADIUS, TOOL_ACTION_SCALES
 from pasta_skill_roll.plugin import SPEC, RollConfig
+from pasta_skill_roll.tool import ROLLER, ROLLER_PARK, ROLLER_RADIUS
 
-ROLL_STEP = TOOL_ACTION_SCALES["roller"][0] * ROLLER_RADIUS  # metres per env step at roll = 1
-LIFT_STEP = TOOL_ACTION_SCALES["roller"][2]  # metres per env step at dy = 1
+ROLL_STEP = ROLLER.scale("roll") * ROLLER_RADIUS  # metres per env step at roll = 1
+LIFT_STEP = ROLLER.scale("y")  # metres per env step at dy = 1
 
 
 def axis(yaw: float) -> np.ndarray:
@@ -140,6 +140,14 @@ class RollSkill(Skill):
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation", "confine_to_goal",
                                          "end_tolerance", "goal_inset")
+    #: `pasta pipeline` settings: near-miss feasibility negatives (outputs shifted 3-10 cm from where the roll
+    #: leaves the dough), chosen on the crs validation configs (docs/learning.md); the policy sees the
+    #: execution step and the tool pose; the stopping-rule grid (docs/policies.md)
+    training_defaults = {
+        "feasibility": {"stride": 4, "epochs": 20, "shift_per_positive": 5},
+        "policy": {"step_feature": True, "pose_feature": True},
+        "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7,0.8", "min_steps": "1,20", "max_steps": "0,60"},
+    }
 
     def __init__(self, config: RollConfig | None = None) -> None:
         super().__init__(config if config is not None else RollConfig())
@@ -164,7 +172,7 @@ class RollSkill(Skill):
         return ToolPose((float(c[0]), top + ROLLER_RADIUS + self.config.clearance, float(c[2])), yaw)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in PARK_POSES["roller"]), 0.0)
+        return ToolPose(tuple(float(v) for v in ROLLER_PARK), 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``height`` U(height_min, height_max); ``length`` the length the piece's volume (bounding box)
@@ -186,3 +194,9 @@ class RollSkill(Skill):
 
     def controller(self) -> Controller:
         return RollController(self.config)
+
+    def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
+        """A small piece in the spreading area (x in 0.22-0.32)."""
+        from pasta.tasks.library import SPREAD_X, small_box
+
+        return [small_box(rng, floor_y, SPREAD_X, (0.3, 0.7))]

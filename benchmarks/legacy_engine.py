@@ -1,0 +1,632 @@
+"""Frozen reference: the MLS-MPM kernels as they were before tools became plugin data (commit ac470c7).
+
+This is a verbatim copy of the former ``pasta/sim/engine.py`` (tool constants inlined, Taichi runtime
+shared with ``pasta.sim.engine``) plus :class:`LegacySim`, a minimal driver with the former
+``Simulator.step`` action semantics for the knife, the pusher and the roller. It exists so that
+``tests/sim/test_legacy_equivalence.py`` can check the plugin-driven kernel bit for bit against the
+kernel that produced the shipped weights and documented results, and so that ``bench_sim.py`` can time
+both side by side. Do not edit the kernels here; this file may name tools, ``pasta/sim`` does not.
+
+The former module docstring:
+
+The Taichi side: runtime initialisation, fields and MLS-MPM kernels.
+
+One substep = 4 kernel launches:
+
+1. ``constitutive`` (parallel over particles): trial F = (I + dt C) F, SVD, von Mises return mapping
+   on log singular values, fixed-corotated stress, and the per-particle APIC "affine" matrix.
+2. ``scatter`` (P2G, serialized loop): quadratic B-spline scatter of mass and momentum into a
+   (m v, m) grid, also tracking the bounding box of touched nodes. A serialized loop lets Taichi
+   demote the float atomics to plain adds (about 3x faster than the atomic parallel scatter on
+   CPU) and makes the result bitwise deterministic.
+3. ``grid_op`` (parallel over the touched box only): momentum -> velocity, gravity, tool contact
+   (soft SDF band, Coulomb friction), floor friction (a second friction inside the spreading
+   area), free-slip walls.
+4. ``g2p`` (parallel over particles): gather velocity and APIC C, advect, divergence check, clamp;
+   then clear the touched grid box so the grid is all-zero between substeps.
+
+The per-particle constitutive update and the scatter are separate kernels and every parameter is a
+field, so a differentiable variant (per-substep particle history + ``ti.ad``) can reuse them.
+"""
+
+
+
+import math
+
+import numpy as np
+import taichi as ti
+
+from pasta.core.errors import ConfigError
+
+from pasta.sim.engine import ensure_taichi  # the runtime is shared; only the kernels here are frozen
+
+# ---- the three tools of the frozen kernel (copied from the former pasta/sim/tools.py) ----------
+TOOL_NAMES = ("knife", "pusher", "roller")
+TOOL_ACTION_SCALES = {"knife": (0.015, 0.015), "pusher": (0.01, 0.01, 0.01, 0.025), "roller": (0.7, 0.005, 0.005, 0.005)}
+KNIFE_HALF = (0.025, 0.1, 0.06)
+KNIFE_WEDGE_HALF_ANGLE = math.radians(30.0)
+KNIFE_TIP_DEPTH = 0.05
+PUSHER_HALF = (0.015, 0.05, 0.1)
+ROLLER_RADIUS = 0.03
+ROLLER_HALF_LENGTH = 0.075
+TOOL_BOUND_RADIUS = {
+    "knife": math.sqrt(sum(h * h for h in KNIFE_HALF)),
+    "pusher": math.sqrt(sum(h * h for h in PUSHER_HALF)),
+    "roller": ROLLER_RADIUS + ROLLER_HALF_LENGTH,
+}
+PARK_POSES = {"knife": (0.15, 0.8, 0.12), "pusher": (0.45, 0.8, 0.12), "roller": (0.75, 0.8, 0.12)}
+
+
+# ---- runtime parameter slots (one f32 field) -------------------------------------------------
+P_DT, P_MU, P_LAM, P_YIELD, P_GRAVITY, P_GROUND_FRIC, P_SPREAD_FRIC, P_SPREAD_X0, P_SPREAD_X1, P_SOFTNESS = range(10)
+P_TOOL_FRIC0 = 10  # + tool index
+N_PARAMS = P_TOOL_FRIC0 + len(TOOL_NAMES)
+
+# ---- tool state slots (one (n_tools, TS) f32 field, written once per env step) -----------------
+# position at the start of the env step (3), yaw at the start (1), linear velocity (3),
+# angular velocity (3, world frame, includes the roller spin), yaw rate (1)
+TS_POS, TS_YAW, TS_VEL, TS_OMEGA, TS_YAWRATE = 0, 3, 4, 7, 10
+TS = 11
+
+WALL_CELLS = 3  # free-slip band at the side walls and the ceiling
+FLOOR_CELLS = 2  # floor band (nodes j < FLOOR_CELLS get the floor condition)
+P_VOL_FACTOR = 0.125  # particle volume = (dx / 2)^3; the dynamics depend only on E / rho
+RHO = 1.0
+
+class LegacyEngine:
+    """Fields and kernels for one (n_grid, max_particles) layout. Built once per process per layout.
+
+    ``scatter``: "serial" (CPU default: deterministic, fastest on CPU) or "atomic" (GPU: parallel
+    float atomics, not bitwise reproducible). ``fast_svd``: warm-started one-sweep Jacobi SVD (see
+    ``warm_svd``) instead of Taichi's 5-sweep ``ti.svd`` (2.2x cheaper constitutive kernel).
+    ``fused``: run one substep as one kernel launch (5 loops) instead of 4 launches.
+    """
+
+    def __init__(self, n_grid: int, max_particles: int, scatter: str = "serial", fast_svd: bool = True,
+                 fused: bool = True) -> None:
+        if scatter not in ("serial", "atomic"):
+            raise ConfigError(f"sim.scatter={scatter!r}: must be 'serial' or 'atomic'")
+        self.n_grid = n = n_grid
+        self.max_particles = max_particles
+        self.dx = dx = 1.0 / n
+        inv_dx = float(n)
+        p_vol = P_VOL_FACTOR * dx**3
+        p_mass = p_vol * RHO
+        self.p_vol, self.p_mass = p_vol, p_mass
+        self.fast_svd, self.fused, self.scatter_mode = fast_svd, fused, scatter
+
+        # particles
+        self.x = ti.Vector.field(3, ti.f32, shape=max_particles)
+        self.v = ti.Vector.field(3, ti.f32, shape=max_particles)
+        self.C = ti.Matrix.field(3, 3, ti.f32, shape=max_particles)
+        self.F = ti.Matrix.field(3, 3, ti.f32, shape=max_particles)
+        self.A = ti.Matrix.field(3, 3, ti.f32, shape=max_particles)  # scratch: APIC affine momentum
+        self.Vr = ti.Matrix.field(3, 3, ti.f32, shape=max_particles)  # scratch: warm-start SVD rotation
+        self.n_p = ti.field(ti.i32, shape=())
+        # grid: (m v, m) per node, then (v, m) after the grid operation
+        self.grid = ti.Vector.field(4, ti.f32, shape=(n, n, n))
+        self.bbox = ti.field(ti.i32, shape=6)  # lo xyz, hi xyz of touched nodes (inclusive)
+        self.bad = ti.field(ti.i32, shape=2)  # [non-finite or faster than dx/dt, left the unit cube]
+        self.params = ti.field(ti.f32, shape=N_PARAMS)
+        self.tool = ti.field(ti.f32, shape=(len(TOOL_NAMES), TS))
+
+        x, v, C, F, A, Vr, n_p, grid, bbox, bad, params, tool = (
+            self.x, self.v, self.C, self.F, self.A, self.Vr, self.n_p, self.grid, self.bbox, self.bad,
+            self.params, self.tool,
+        )
+        lo_clamp = ti.Vector([2 * dx, dx, 2 * dx])
+        hi_clamp = ti.Vector([1 - 3 * dx, 1 - 3 * dx, 1 - 3 * dx])
+        knife_h = ti.Vector(list(KNIFE_HALF))
+        pusher_h = ti.Vector(list(PUSHER_HALF))
+        ca, sa = math.cos(KNIFE_WEDGE_HALF_ANGLE), math.sin(KNIFE_WEDGE_HALF_ANGLE)
+        bound_r = [TOOL_BOUND_RADIUS[name] + 0.03 for name in TOOL_NAMES]
+        serial = scatter == "serial"
+
+        # ---------------------------------------------------------------- geometry
+        @ti.func
+        def box_sdf(q, h):
+            d = ti.abs(q) - h
+            sgn = ti.Vector([1.0 if q[0] >= 0 else -1.0, 1.0 if q[1] >= 0 else -1.0, 1.0 if q[2] >= 0 else -1.0])
+            dist = 0.0
+            nrm = ti.Vector([0.0, 0.0, 0.0])
+            dmax = ti.max(d[0], d[1], d[2])
+            if dmax > 0:
+                o = ti.max(d, 0.0)
+                dist = o.norm()
+                nrm = o / ti.max(dist, 1e-12) * sgn
+            else:
+                dist = dmax
+                if d[0] >= d[1] and d[0] >= d[2]:
+                    nrm[0] = sgn[0]
+                elif d[1] >= d[2]:
+                    nrm[1] = sgn[1]
+                else:
+                    nrm[2] = sgn[2]
+            return dist, nrm
+
+        @ti.func
+        def tool_sdf(t: ti.template(), q):
+            """Signed distance and outward unit normal in the tool frame."""
+            dist = 0.0
+            nrm = ti.Vector([0.0, 1.0, 0.0])
+            if ti.static(t == 0):  # knife: box intersected with a downward wedge
+                dist, nrm = box_sdf(q, knife_h)
+                r = q - ti.Vector([0.0, -knife_h[1], 0.0])
+                p1 = r[0] * ca - r[1] * sa
+                p2 = -r[0] * ca - r[1] * sa
+                if p1 > dist and p1 >= p2:
+                    dist = p1
+                    nrm = ti.Vector([ca, -sa, 0.0])
+                elif p2 > dist:
+                    dist = p2
+                    nrm = ti.Vector([-ca, -sa, 0.0])
+            elif ti.static(t == 1):  # pusher: box
+                dist, nrm = box_sdf(q, pusher_h)
+            else:  # roller: capsule along local z
+                cz = ti.min(ti.max(q[2], -ROLLER_HALF_LENGTH), ROLLER_HALF_LENGTH)
+                r = q - ti.Vector([0.0, 0.0, cz])
+                ln = r.norm()
+                dist = ln - ROLLER_RADIUS
+                if ln > 1e-9:
+                    nrm = r / ln
+            return dist, nrm
+
+        # ---------------------------------------------------------------- constitutive model
+        @ti.func
+        def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):
+            """One exact Jacobi rotation zeroing S[p, q]; returns (J^T S J, V J)."""
+            spq = S[p, q]
+            d = 0.5 * (S[q, q] - S[p, p])
+            root = ti.sqrt(d * d + spq * spq)
+            den = d + root if d >= 0 else d - root
+            t = 0.0
+            if ti.abs(den) > 1e-30:
+                t = spq / den
+            c = 1.0 / ti.sqrt(1.0 + t * t)
+            sn = t * c
+            J = ti.Matrix.identity(ti.f32, 3)
+            J[p, p] = c
+            J[q, q] = c
+            J[p, q] = sn
+            J[q, p] = -sn
+            return J.transpose() @ S @ J, V @ J
+
+        @ti.func
+        def warm_svd(Fp, V):
+            """SVD of Fp warm-started from the previous right singular vectors V (a rotation): one
+            cyclic Jacobi sweep on V^T Fp^T Fp V, then Gram-Schmidt on Fp V. F changes by
+            (I + dt C) per substep, so V is already nearly right and one sweep suffices; V is
+            recomputed by a full SVD at the start of every env step (``refresh_svd``). Returns
+            U, sig, V with U and V rotations (sig[2] < 0 for an inverted element), unsorted."""
+            S = V.transpose() @ (Fp.transpose() @ Fp) @ V
+            S, V = jacobi_rotate(S, V, 0, 1)
+            S, V = jacobi_rotate(S, V, 0, 2)
+            S, V = jacobi_rotate(S, V, 1, 2)
+            B = Fp @ V
+            b0 = ti.Vector([B[0, 0], B[1, 0], B[2, 0]])
+            b1 = ti.Vector([B[0, 1], B[1, 1], B[2, 1]])
+            b2 = ti.Vector([B[0, 2], B[1, 2], B[2, 2]])
+            s0 = ti.max(b0.norm(), 1e-12)
+            u0 = b0 / s0
+            b1 = b1 - u0.dot(b1) * u0
+            s1 = ti.max(b1.norm(), 1e-12)
+            u1 = b1 / s1
+            u2 = u0.cross(u1)
+            s2 = u2.dot(b2)
+            U = ti.Matrix.cols([u0, u1, u2])
+            return U, ti.Vector([s0, s1, s2]), V
+
+        @ti.func
+        def constitutive_p(p):
+            """Trial F, return mapping (von Mises on log singular values), fixed-corotated stress;
+            writes F[p] and the APIC affine matrix A[p]."""
+            dt = params[P_DT]
+            mu = params[P_MU]
+            lam = params[P_LAM]
+            yield_strain = params[P_YIELD] / (2.0 * mu)
+            Fp = (ti.Matrix.identity(ti.f32, 3) + dt * C[p]) @ F[p]
+            U = ti.Matrix.identity(ti.f32, 3)
+            V = ti.Matrix.identity(ti.f32, 3)
+            sig = ti.Vector([1.0, 1.0, 1.0])
+            if ti.static(fast_svd):
+                U, sig, V = warm_svd(Fp, Vr[p])
+                Vr[p] = V
+            else:
+                U, sm, V = ti.svd(Fp)
+                sig = ti.Vector([sm[0, 0], sm[1, 1], sm[2, 2]])
+            e = ti.log(ti.max(sig, 0.05))
+            changed = sig.min() < 0.05
+            e_hat = e - e.sum() / 3.0
+            e_norm = ti.sqrt(e_hat.dot(e_hat) + 1e-12)
+            dgamma = e_norm - yield_strain
+            if dgamma > 0:
+                e = e - dgamma / e_norm * e_hat
+                changed = True
+            s = ti.exp(e)
+            if changed or ti.static(fast_svd):
+                # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly
+                Fp = U @ ti.Matrix([[s[0], 0.0, 0.0], [0.0, s[1], 0.0], [0.0, 0.0, s[2]]]) @ V.transpose()
+            J = s[0] * s[1] * s[2]
+            R = U @ V.transpose()
+            stress = 2.0 * mu * (Fp - R) @ Fp.transpose() + ti.Matrix.identity(ti.f32, 3) * (lam * J * (J - 1.0))
+            F[p] = Fp
+            A[p] = (-dt * p_vol * 4.0 * inv_dx * inv_dx) * stress + p_mass * C[p]
+
+        # ---------------------------------------------------------------- transfers
+        @ti.func
+        def scatter_p(p):
+            """P2G of particle p (quadratic B-spline, APIC); returns its stencil base node."""
+            Xp = x[p] * inv_dx
+            base = ti.cast(Xp - 0.5, ti.i32)
+            fx = Xp - ti.cast(base, ti.f32)
+            w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+            mv = p_mass * v[p]
+            aff = A[p]
+            for i, j, k in ti.static(ti.ndrange(3, 3, 3)):
+                dpos = (ti.Vector([i, j, k], ti.f32) - fx) * dx
+                weight = w[i][0] * w[j][1] * w[k][2]
+                mom = weight * (mv + aff @ dpos)
+                grid[base + ti.Vector([i, j, k])] += ti.Vector([mom[0], mom[1], mom[2], weight * p_mass])
+            return base
+
+        @ti.func
+        def box_extent():
+            lo = ti.Vector([bbox[0], bbox[1], bbox[2]])
+            ext = ti.max(ti.Vector([bbox[3], bbox[4], bbox[5]]) - lo + 1, 0)
+            return lo, ext
+
+        @ti.func
+        def box_node(lo, ext, tt):
+            return ti.Vector([lo[0] + tt // (ext[1] * ext[2]), lo[1] + (tt // ext[2]) % ext[1], lo[2] + tt % ext[2]])
+
+        @ti.func
+        def grid_node(I, t_now):
+            """Momentum -> velocity, gravity, tool contact, floor friction, walls (node I)."""
+            gv = grid[I]
+            if gv[3] > 0:
+                dt = params[P_DT]
+                soft = params[P_SOFTNESS]
+                band = 0.0
+                if soft > 0:
+                    band = 2.302585 / soft  # influence exp(-soft d) > 0.1
+                vel = ti.Vector([gv[0], gv[1], gv[2]]) / gv[3]
+                vel[1] += dt * params[P_GRAVITY]
+                xn = ti.cast(I, ti.f32) * dx
+                for t in ti.static(range(len(TOOL_NAMES))):
+                    tv = ti.Vector([tool[t, TS_VEL], tool[t, TS_VEL + 1], tool[t, TS_VEL + 2]])
+                    c = ti.Vector([tool[t, TS_POS], tool[t, TS_POS + 1], tool[t, TS_POS + 2]]) + tv * t_now
+                    r = xn - c
+                    if r.norm_sqr() < bound_r[t] ** 2:
+                        yaw = tool[t, TS_YAW] + tool[t, TS_YAWRATE] * t_now
+                        cy, sy = ti.cos(yaw), ti.sin(yaw)
+                        q = ti.Vector([cy * r[0] - sy * r[2], r[1], sy * r[0] + cy * r[2]])
+                        d, nl = tool_sdf(t, q)
+                        if d <= 0 or d < band:
+                            infl = ti.min(ti.exp(-d * soft), 1.0)
+                            nw = ti.Vector([cy * nl[0] + sy * nl[2], nl[1], -sy * nl[0] + cy * nl[2]])
+                            om = ti.Vector([tool[t, TS_OMEGA], tool[t, TS_OMEGA + 1], tool[t, TS_OMEGA + 2]])
+                            vt = tv + om.cross(r)
+                            rel = vel - vt
+                            vn = rel.dot(nw)
+                            tang = rel
+                            if vn < 0:
+                                tang = rel - vn * nw
+                                tl = tang.norm()
+                                tang = tang * (ti.max(0.0, tl + params[P_TOOL_FRIC0 + t] * vn) / ti.max(tl, 1e-12))
+                            vel = vt + (1.0 - infl) * rel + infl * tang
+                # floor: Coulomb friction, higher inside the spreading area
+                if I[1] < FLOOR_CELLS and vel[1] < 0:
+                    mu_f = params[P_GROUND_FRIC]
+                    if params[P_SPREAD_X0] <= xn[0] and xn[0] <= params[P_SPREAD_X1]:
+                        mu_f = params[P_SPREAD_FRIC]
+                    tl = ti.sqrt(vel[0] ** 2 + vel[2] ** 2)
+                    scale = ti.max(0.0, tl + mu_f * vel[1]) / ti.max(tl, 1e-12)
+                    vel = ti.Vector([vel[0] * scale, 0.0, vel[2] * scale])
+                # free-slip side walls and ceiling
+                for d in ti.static(range(3)):
+                    if ti.static(d != 1):
+                        if I[d] < WALL_CELLS and vel[d] < 0:
+                            vel[d] = 0.0
+                    if I[d] > n - WALL_CELLS and vel[d] > 0:
+                        vel[d] = 0.0
+                grid[I] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
+
+        @ti.func
+        def g2p_p(p):
+            """Gather v and C, advect, flag divergence (non-finite, faster than dx/dt, outside the unit
+            cube; flagged particles keep their position), clamp inside the walls."""
+            dt = params[P_DT]
+            Xp = x[p] * inv_dx
+            base = ti.cast(Xp - 0.5, ti.i32)
+            fx = Xp - ti.cast(base, ti.f32)
+            w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+            new_v = ti.Vector.zero(ti.f32, 3)
+            new_C = ti.Matrix.zero(ti.f32, 3, 3)
+            for i, j, k in ti.static(ti.ndrange(3, 3, 3)):
+                dpos = ti.Vector([i, j, k], ti.f32) - fx
+                gv = grid[base + ti.Vector([i, j, k])]
+                gvel = ti.Vector([gv[0], gv[1], gv[2]])
+                weight = w[i][0] * w[j][1] * w[k][2]
+                new_v += weight * gvel
+                new_C += (4.0 * inv_dx * weight) * gvel.outer_product(dpos)
+            xn = x[p] + dt * new_v
+            if not (new_v.norm_sqr() * dt * dt <= dx * dx):  # also catches NaN / inf
+                ti.atomic_add(bad[0], 1)
+                v[p] = ti.Vector.zero(ti.f32, 3)
+                C[p] = ti.Matrix.zero(ti.f32, 3, 3)
+            else:
+                if xn.min() < 0.0 or xn.max() > 1.0:
+                    ti.atomic_add(bad[1], 1)
+                v[p] = new_v
+                C[p] = new_C
+                x[p] = ti.min(ti.max(xn, lo_clamp), hi_clamp)
+
+        # ---------------------------------------------------------------- kernels
+        @ti.kernel
+        def refresh_svd():
+            """Recompute the warm-start rotations from F with a full SVD (once per env step)."""
+            for p in range(n_p[None]):
+                U, sig, V = ti.svd(F[p])
+                Vr[p] = V
+
+        @ti.kernel
+        def constitutive():
+            for p in range(n_p[None]):
+                constitutive_p(p)
+
+        @ti.kernel
+        def scatter():
+            """P2G. Serial mode: one serialized loop (Taichi demotes the atomics to plain adds:
+            ~3x faster than parallel atomics on CPU, bitwise deterministic)."""
+            lo = ti.Vector([n, n, n])
+            hi = ti.Vector([-1, -1, -1])
+            if ti.static(serial):
+                ti.loop_config(serialize=True)
+                for p in range(n_p[None]):
+                    base = scatter_p(p)
+                    lo = ti.min(lo, base)
+                    hi = ti.max(hi, base + 2)
+                for d in ti.static(range(3)):
+                    bbox[d] = lo[d]
+                    bbox[3 + d] = hi[d]
+            else:
+                for d in ti.static(range(3)):
+                    bbox[d] = n
+                    bbox[3 + d] = -1
+                for p in range(n_p[None]):
+                    base = scatter_p(p)
+                    for d in ti.static(range(3)):
+                        ti.atomic_min(bbox[d], base[d])
+                        ti.atomic_max(bbox[3 + d], base[d] + 2)
+
+        @ti.kernel
+        def grid_op(t_now: ti.f32):
+            lo, ext = box_extent()
+            for tt in range(ext[0] * ext[1] * ext[2]):
+                grid_node(box_node(lo, ext, tt), t_now)
+
+        @ti.kernel
+        def g2p():
+            for p in range(n_p[None]):
+                g2p_p(p)
+            # clear the touched box so the grid is all-zero between substeps
+            lo, ext = box_extent()
+            for tt in range(ext[0] * ext[1] * ext[2]):
+                grid[box_node(lo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
+
+        @ti.kernel
+        def substep_fused(t_now: ti.f32):
+            """constitutive + scatter + grid_op + g2p in one launch (same code, 5 loops)."""
+            for p in range(n_p[None]):
+                constitutive_p(p)
+            lo = ti.Vector([n, n, n])
+            hi = ti.Vector([-1, -1, -1])
+            if ti.static(serial):
+                ti.loop_config(serialize=True)
+                for p in range(n_p[None]):
+                    base = scatter_p(p)
+                    lo = ti.min(lo, base)
+                    hi = ti.max(hi, base + 2)
+                for d in ti.static(range(3)):
+                    bbox[d] = lo[d]
+                    bbox[3 + d] = hi[d]
+            else:
+                for d in ti.static(range(3)):
+                    bbox[d] = n
+                    bbox[3 + d] = -1
+                for p in range(n_p[None]):
+                    base = scatter_p(p)
+                    for d in ti.static(range(3)):
+                        ti.atomic_min(bbox[d], base[d])
+                        ti.atomic_max(bbox[3 + d], base[d] + 2)
+            blo, ext = box_extent()
+            for tt in range(ext[0] * ext[1] * ext[2]):
+                grid_node(box_node(blo, ext, tt), t_now)
+            for p in range(n_p[None]):
+                g2p_p(p)
+            for tt in range(ext[0] * ext[1] * ext[2]):
+                grid[box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
+
+        @ti.kernel
+        def check_state() -> ti.i32:
+            """Count particles with a non-finite state or a position outside the unit cube."""
+            cnt = 0
+            for p in range(n_p[None]):
+                s = x[p].sum() + v[p].sum() + F[p].sum() + C[p].sum()
+                if not (ti.abs(s) < 1e30) or x[p].min() < 0.0 or x[p].max() > 1.0:
+                    cnt += 1
+            return cnt
+
+        @ti.kernel
+        def clear_all():
+            for I in ti.grouped(grid):
+                grid[I] = ti.Vector.zero(ti.f32, 4)
+            for d in ti.static(range(3)):
+                bbox[d] = 0
+                bbox[3 + d] = -1
+            bad[0] = 0
+            bad[1] = 0
+
+        @ti.kernel
+        def reset_bad():
+            bad[0] = 0
+            bad[1] = 0
+
+        self._refresh_svd = refresh_svd
+        self._constitutive = constitutive
+        self._scatter = scatter
+        self._grid_op = grid_op
+        self._g2p = g2p
+        self._substep_fused = substep_fused
+        self.check_state = check_state
+        self.clear_all = clear_all
+        self.reset_bad = reset_bad
+        self.owner = None  # the Simulator whose state is currently in the fields
+
+    def substeps(self, n_sub: int, dt: float) -> None:
+        """Run ``n_sub`` substeps. The tool field holds the env-step start poses and velocities;
+        substep s uses the tool poses at time (s + 1) * dt."""
+        if self.fast_svd:
+            self._refresh_svd()
+        for s in range(n_sub):
+            t_now = (s + 1) * dt
+            if self.fused:
+                self._substep_fused(t_now)
+            else:
+                self._constitutive()
+                self._scatter()
+                self._grid_op(t_now)
+                self._g2p()
+
+    def set_particles(self, x: np.ndarray, v: np.ndarray, F: np.ndarray, C: np.ndarray) -> None:
+        """Load a particle state (N, 3), (N, 3), (N, 3, 3), (N, 3, 3); clears the grid."""
+        n = x.shape[0]
+        m = self.max_particles
+
+        def pad(a: np.ndarray, shape: tuple) -> np.ndarray:
+            out = np.zeros((m,) + shape, dtype=np.float32)
+            out[:n] = a
+            return out
+
+        self.x.from_numpy(pad(x, (3,)))
+        self.v.from_numpy(pad(v, (3,)))
+        self.F.from_numpy(pad(F, (3, 3)))
+        self.C.from_numpy(pad(C, (3, 3)))
+        self.n_p[None] = n
+        self.clear_all()
+
+    def get_particles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        n = int(self.n_p[None])
+        return (self.x.to_numpy()[:n], self.v.to_numpy()[:n], self.F.to_numpy()[:n], self.C.to_numpy()[:n])
+
+
+# ---------------------------------------------------------------------------------------------
+# the minimal driver: the former Simulator's parameter packing and step semantics, nothing else
+
+
+def legacy_tool_bounds(name: str, dx: float) -> tuple[np.ndarray, np.ndarray]:
+    lo = np.full(3, 3 * dx)
+    hi = np.full(3, 1.0 - 3 * dx)
+    lo[1] = {"knife": KNIFE_HALF[1] - KNIFE_TIP_DEPTH, "pusher": PUSHER_HALF[1], "roller": ROLLER_RADIUS}[name]
+    return lo, hi
+
+
+_LEGACY_ENGINES: dict = {}
+
+
+class LegacySim:
+    """The former simulator's stepping on the frozen kernels. ``cfg`` is a :class:`pasta.sim.SimConfig`
+    (its tool frictions are read from ``cfg.tool_friction`` or the tools' old defaults 0, 5, 0.9).
+
+    ``set_state(x, v, F, C, tools)``: (N, 3), (N, 3), (N, 3, 3), (N, 3, 3) float32 and (3, >=5) rows
+    (x, y, z, yaw, spin) in TOOL_NAMES order. ``step({name: action})`` as the former ``Simulator.step``.
+    """
+
+    def __init__(self, cfg) -> None:
+        ensure_taichi(cfg.arch, cfg.cpu_threads)
+        key = (cfg.n_grid, cfg.max_particles)
+        if key not in _LEGACY_ENGINES:
+            _LEGACY_ENGINES[key] = LegacyEngine(cfg.n_grid, cfg.max_particles, scatter="serial")
+        self.eng = _LEGACY_ENGINES[key]
+        self.cfg = cfg
+        self.dx = 1.0 / cfg.n_grid
+        fric = {"knife": 0.0, "pusher": 5.0, "roller": 0.9, **dict(getattr(cfg, "tool_friction", {}) or {})}
+        self._params = {k: float(getattr(cfg, k)) for k in (
+            "dt", "E", "nu", "yield_stress", "gravity", "ground_friction", "spread_friction", "spread_x_min",
+            "spread_x_max", "softness")}
+        self._params.update({f"{k}_friction": float(fric[k]) for k in TOOL_NAMES})
+        self.tools = {k: np.array([*PARK_POSES[k], 0.0, 0.0]) for k in TOOL_NAMES}
+
+    def _write_params(self) -> None:
+        p = self._params
+        mu = p["E"] / (2.0 * (1.0 + p["nu"]))
+        lam = p["E"] * p["nu"] / ((1.0 + p["nu"]) * (1.0 - 2.0 * p["nu"]))
+        arr = np.zeros(N_PARAMS, dtype=np.float32)
+        arr[P_DT], arr[P_MU], arr[P_LAM], arr[P_YIELD] = p["dt"], mu, lam, p["yield_stress"]
+        arr[P_GRAVITY], arr[P_GROUND_FRIC], arr[P_SPREAD_FRIC] = p["gravity"], p["ground_friction"], p["spread_friction"]
+        arr[P_SPREAD_X0], arr[P_SPREAD_X1], arr[P_SOFTNESS] = p["spread_x_min"], p["spread_x_max"], p["softness"]
+        for i, name in enumerate(TOOL_NAMES):
+            arr[P_TOOL_FRIC0 + i] = p[f"{name}_friction"]
+        self.eng.params.from_numpy(arr)
+
+    def set_state(self, x, v, F, C, tools) -> None:
+        self._write_params()
+        self.eng.set_particles(x, v, F, C)
+        self.tools = {k: np.array(tools[i][:5], dtype=np.float64) for i, k in enumerate(TOOL_NAMES)}
+
+    def set_tool_pose(self, name: str, position, yaw: float = 0.0) -> None:
+        lo, hi = legacy_tool_bounds(name, self.dx)
+        self.tools[name] = np.array([*np.clip(np.asarray(position, np.float64), lo, hi), float(yaw), self.tools[name][4]])
+
+    def park_tool(self, name: str) -> None:
+        self.tools[name] = np.array([*PARK_POSES[name], 0.0, 0.0])
+
+    def particles(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        return self.eng.get_particles()
+
+    def step(self, actions: dict | None = None) -> None:
+        actions = actions or {}
+        dt = self._params["dt"]
+        T = self.cfg.substeps * dt
+        tool_arr = np.zeros((len(TOOL_NAMES), TS), dtype=np.float32)
+        new_tools = {}
+        for i, name in enumerate(TOOL_NAMES):
+            cur = self.tools[name]
+            tool_arr[i, TS_POS:TS_POS + 3] = cur[:3]
+            tool_arr[i, TS_YAW] = cur[3]
+            new_tools[name] = cur.copy()
+        for name, a in actions.items():
+            a = np.asarray(a, dtype=np.float64).reshape(-1)
+            a = np.clip(a, -1.0, 1.0) * np.asarray(TOOL_ACTION_SCALES[name][: a.shape[0]])
+            cur = self.tools[name]
+            yaw = cur[3]
+            delta = np.zeros(3)
+            dyaw = 0.0
+            omega = np.zeros(3)
+            spin = cur[4]
+            if name == "knife":
+                delta[:2] = a
+            elif name == "pusher":
+                delta[:] = a[:3]
+                dyaw = a[3]
+            else:  # roller
+                roll, dyaw, dy = a[0], a[1], a[2]
+                slide = a[3] if a.shape[0] == 4 else 0.0
+                d = np.array([math.cos(yaw), 0.0, -math.sin(yaw)])
+                axis = np.array([math.sin(yaw), 0.0, math.cos(yaw)])
+                delta = d * (roll * ROLLER_RADIUS + slide) + np.array([0.0, dy, 0.0])
+                omega = -roll / T * axis
+                spin = spin - roll
+            lo, hi = legacy_tool_bounds(name, self.dx)
+            target = np.clip(cur[:3] + delta, lo, hi)
+            omega[1] += dyaw / T
+            i = TOOL_NAMES.index(name)
+            tool_arr[i, TS_VEL:TS_VEL + 3] = (target - cur[:3]) / T
+            tool_arr[i, TS_OMEGA:TS_OMEGA + 3] = omega
+            tool_arr[i, TS_YAWRATE] = dyaw / T
+            new_tools[name] = np.array([*target, yaw + dyaw, spin])
+        self.eng.tool.from_numpy(tool_arr)
+        self.eng.reset_bad()
+        self.eng.substeps(self.cfg.substeps, dt)
+        self.bad = self.eng.bad.to_numpy()  # the former Simulator read the divergence counters every step
+        self.tools = new_tools

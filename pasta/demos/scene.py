@@ -1,0 +1,117 @@
+"""Which skills can make demonstrations, and the scenes they start from (the skill's own hooks).
+
+A skill makes demonstrations when its class overrides the hooks of :attr:`pasta.core.Skill.DEMO_HOOKS`
+(:meth:`~pasta.core.Skill.has_expert`): ``demo_scene`` gives the boxes of dough a demonstration starts
+from, ``sample_expert_params`` / ``expert_approach_pose`` / ``expert`` run it. Scene variants
+(:attr:`~pasta.core.Skill.demo_variants`, ``pasta demos scene=NAME``) change the scene and the expert's
+config. Nothing here names a skill: everything comes from what is registered.
+"""
+
+from __future__ import annotations
+
+from dataclasses import fields, is_dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from pasta.core.errors import ConfigError, InputError, PastaError, did_you_mean
+
+DEFAULT = "default"
+
+
+def demo_skills(plugins: Any = None) -> list[str]:
+    """Names of the registered skills that can make demonstrations (sorted); skills whose class does not
+    import are left out (``pasta plugins`` reports them)."""
+    if plugins is None:
+        from pasta.plugins import get_plugins
+
+        plugins = get_plugins()
+    names = []
+    for name in plugins.skills.names():
+        try:
+            cls = plugins.skills.load(name)
+        except PastaError:
+            continue
+        if cls.has_expert():
+            names.append(name)
+    return names
+
+
+def check_demo_skill(name: str, plugins: Any = None) -> type:
+    """The class of skill ``name`` if it can make demonstrations.
+
+    Raises:
+        ConfigError: ``name`` is not registered, or its plugin lacks demonstration hooks (named), with the
+            list of skills that have them.
+    """
+    if plugins is None:
+        from pasta.plugins import get_plugins
+
+        plugins = get_plugins()
+    able = demo_skills(plugins)
+    known = f"skills with demonstrations: {', '.join(able) or 'none'}"
+    if name not in plugins.skills:
+        raise ConfigError(f"unknown skill '{name}' for demonstrations{did_you_mean(name, able)}; {known}")
+    cls = plugins.skills.load(name)
+    missing = cls.missing_demo_hooks()
+    if missing:
+        raise ConfigError(f"skill '{name}' cannot make demonstrations: its plugin does not define "
+                          f"{', '.join(missing)} (pasta.core.Skill hooks); {known}")
+    return cls
+
+
+def variants(cls: type) -> list[str]:
+    """Scene variants of a skill class: ``"default"`` and the keys of its ``demo_variants``."""
+    return [DEFAULT, *(v for v in cls.demo_variants if v != DEFAULT)]
+
+
+def check_variant(cls: type, variant: str) -> None:
+    """Raise :class:`ConfigError` unless ``variant`` is one of :func:`variants` of ``cls``."""
+    if variant not in variants(cls):
+        raise ConfigError(f"skill '{cls.spec.name}' has no demonstration scene '{variant}'; "
+                          f"its scenes: {', '.join(variants(cls))}")
+
+
+def variant_config(config: Any, cls: type, variant: str) -> Any:
+    """``config`` with the fields a variant sets (:attr:`pasta.core.DemoVariant.config`) replaced."""
+    check_variant(cls, variant)
+    if variant == DEFAULT or not cls.demo_variants[variant].config:
+        return config
+    changes = dict(cls.demo_variants[variant].config)
+    names = {f.name for f in fields(config)} if is_dataclass(config) else set()
+    unknown = sorted(set(changes) - names)
+    if unknown:
+        raise ConfigError(f"skill '{cls.spec.name}': demonstration scene '{variant}' sets unknown config fields {unknown}")
+    return replace(config, **changes)
+
+
+def scene_boxes(skill: Any, rng: np.random.Generator, floor_y: float, variant: str = DEFAULT) -> list[tuple]:
+    """The skill's demonstration scene, checked: ``n_in`` boxes ``[(centre (3,), size (3,))]``, sizes > 0."""
+    check_variant(type(skill), variant)
+    boxes = list(skill.demo_scene(rng, floor_y, variant))
+    if len(boxes) != skill.n_in:
+        raise InputError(f"skill '{skill.name}' consumes {skill.n_in} piece(s) but its demo_scene returned "
+                         f"{len(boxes)} box(es)")
+    for box in boxes:
+        try:
+            centre, size = (np.asarray(v, np.float64) for v in box)
+        except (TypeError, ValueError):
+            raise InputError(f"skill '{skill.name}': demo_scene must return (centre, size) pairs, got {box!r}") from None
+        if centre.shape != (3,) or size.shape != (3,) or not (size > 0).all() or not np.isfinite(centre).all():
+            raise InputError(f"skill '{skill.name}': demo_scene box {box!r} needs a centre (3,) and a size (3,) > 0")
+    return boxes
+
+
+def scene_particles(boxes: list[tuple], n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``(n, 3)`` float32 particles of ``boxes`` split by volume (the first box takes the remainder),
+    and ``(n,)`` the box each belongs to. One box: exactly ``box_particles(centre, size, n, rng)``."""
+    from pasta.sim import box_particles
+
+    vols = np.array([np.prod(s) for _, s in boxes], np.float64)
+    counts = np.floor(n * vols / vols.sum()).astype(int)
+    counts[0] += n - counts.sum()
+    if (counts < 1).any():
+        raise InputError(f"{n} particles leave a box of the scene empty (box volumes {vols.tolist()})")
+    parts = [box_particles(c, s, int(k), rng) for (c, s), k in zip(boxes, counts)]
+    owner = np.concatenate([np.full(int(k), i) for i, k in enumerate(counts)])
+    return np.concatenate(parts), owner

@@ -1,0 +1,142 @@
+"""Which registered skills a command plans with: ``skills=`` or every skill that has trained weights.
+
+``pasta run``, ``pasta eval`` and ``pasta plan`` all decide through :func:`choose_skills`, so they agree.
+A skill needs, under the models root:
+
+- a feasibility network ``ROOT/feasibility/<skill>`` unless its class implements ``feasibility`` itself
+  (the Flat 3D method always needs ``ROOT/flat/feasibility/<skill>``);
+- with learned controllers (``controller=learned``), a policy ``ROOT/policy/<skill>``.
+
+Without ``skills=``, skills missing any of these are left out and :meth:`SkillChoice.warning` names them
+with the commands that train them; a skill named in ``skills=`` that misses one is an error. The decision
+only looks for the checkpoint files; loading them (and rejecting incompatible ones) is the loaders' job.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from pasta.core.errors import ConfigError, MissingComponentError
+
+__all__ = ["SkillChoice", "choose_skills", "needs_feasibility_network", "parse_skill_names"]
+
+
+@dataclass
+class SkillChoice:
+    """The outcome of :func:`choose_skills`.
+
+    Attributes:
+        names: the chosen skills, in registry order (or in the order ``skills=`` gave them).
+        left_out: skill -> what it lacks, one ``"<module> (ROOT/...): train with `...`"`` entry per
+            missing checkpoint; empty when ``skills=`` was given.
+        root: the models root that was searched.
+    """
+
+    names: list[str]
+    root: Path
+    left_out: dict[str, list[str]] = field(default_factory=dict)
+
+    def require(self, needed: Sequence[str], what: str) -> None:
+        """Raise :class:`ConfigError` when a skill of ``needed`` (used by ``what``) is not chosen, saying why."""
+        missing = [n for n in dict.fromkeys(needed) if n not in self.names]
+        if not missing:
+            return
+        reasons = [f"'{n}': " + ("; ".join(self.left_out[n]) if n in self.left_out else "not in skills=") for n in missing]
+        raise ConfigError(f"{what} needs the skills {', '.join(dict.fromkeys(needed))}; left out: {'; '.join(reasons)}. "
+                          f"Chosen skills: {', '.join(self.names)}")
+
+    def warning(self) -> str | None:
+        """One line naming the left-out skills and the commands that train them (``None`` if none)."""
+        if not self.left_out:
+            return None
+        missing = "; ".join(f"{name}: {', '.join(needs)}" for name, needs in self.left_out.items())
+        return (f"warning: skills without trained weights under {self.root} are left out: "
+                f"{', '.join(self.left_out)} ({missing}); or `pasta pipeline skills={','.join(self.left_out)} "
+                f"out={self.root}` trains everything they need")
+
+
+def parse_skill_names(value: str | Sequence[str] | None) -> list[str]:
+    """``"cut,push"`` (or a list) -> ``["cut", "push"]``; ``None``/``""`` -> ``[]`` (no choice given)."""
+    if value is None:
+        return []
+    items = value.split(",") if isinstance(value, str) else list(value)
+    names = [n.strip() for n in items if n.strip()]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ConfigError(f"skills= names {', '.join(repeated)} more than once")
+    return names
+
+
+def choose_skills(requested: str | Sequence[str] | None, root: str | Path, *, plugins: Any = None,
+                  policy: bool = False, flat: bool = False) -> SkillChoice:
+    """The skills to plan with, given ``skills=`` (``requested``) and the models under ``root``.
+
+    Args:
+        requested: ``"cut,push,roll"``, a list of names, or ``None``/``""`` for every registered skill
+            that has its weights.
+        root: models root (``pasta train ... out=ROOT``, or the shipped :data:`pasta.weights.ROOT`).
+        policy: learned controllers will run, so every skill needs its policy.
+        flat: the Flat 3D method (scene feasibility networks under ``ROOT/flat``).
+
+    Raises:
+        PluginNotFoundError: a requested name is not a registered skill (the known ones are listed).
+        MissingComponentError: a requested skill lacks weights (the message gives the training command),
+            or no registered skill has them.
+    """
+    if plugins is None:
+        from pasta.plugins import get_plugins
+
+        plugins = get_plugins()
+    root = Path(root)
+    names = parse_skill_names(requested)
+    for name in names:
+        plugins.skills.info(name)  # unknown -> PluginNotFoundError listing the registered skills
+    candidates = names or plugins.skills.names()
+    lacking = {name: _missing(plugins.skills.load(name), root, policy=policy, flat=flat) for name in candidates}
+    lacking = {name: needs for name, needs in lacking.items() if needs}
+    if names and lacking:
+        detail = "; ".join(f"skill '{name}' has no {', '.join(needs)}" for name, needs in lacking.items())
+        raise MissingComponentError(f"skills= names skills without trained weights under {root}: {detail}")
+    chosen = [n for n in candidates if n not in lacking]
+    if not chosen:
+        detail = "; ".join(f"{name}: {', '.join(needs)}" for name, needs in lacking.items())
+        raise MissingComponentError(f"no registered skill has trained weights under {root} ({detail or 'no skills registered'})")
+    return SkillChoice(chosen, root, lacking)
+
+
+def needs_feasibility_network(skill: Any) -> bool:
+    """Whether ``skill`` (an instance or class) gets its feasibility from a trained network, i.e. does not
+    implement :meth:`pasta.core.Skill.feasibility` itself and has no network attached yet."""
+    from pasta.core import Skill
+
+    cls = skill if isinstance(skill, type) else type(skill)
+    return cls.feasibility is Skill.feasibility and getattr(skill, "feasibility_model", None) is None
+
+
+def _missing(cls: type, root: Path, *, policy: bool, flat: bool) -> list[str]:
+    """What skill class ``cls`` lacks under ``root``: one ``what (where): train with `cmd``` entry per checkpoint."""
+    from pasta.io.checkpoint import checkpoint_exists
+    from pasta.nn import FEASIBILITY_DIR
+    from pasta.policy import POLICY_DIR
+
+    name = cls.spec.name
+    needs = []
+    if flat:
+        from pasta.nn.flat import flat_hint
+
+        where = root / "flat" / FEASIBILITY_DIR / name
+        if not checkpoint_exists(where):
+            needs.append(f"Flat 3D feasibility network ({where}): train with {flat_hint('feasibility', root / 'flat', name)}")
+    elif needs_feasibility_network(cls):
+        where = root / FEASIBILITY_DIR / name
+        if not checkpoint_exists(where):
+            needs.append(f"feasibility network ({where}): train with "
+                         f"`pasta train feasibility data=DIR out={root} skill={name}`")
+    if policy:
+        where = root / POLICY_DIR / name
+        if not checkpoint_exists(where):
+            needs.append(f"policy ({where}): train with `pasta train policy data=DIR out={root} skill={name}`")
+    return needs

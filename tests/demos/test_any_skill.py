@@ -1,0 +1,166 @@
+"""Demonstrations and training for a skill that only a third-party plugin knows: 'merge' (2 -> 1, pushes one
+small box into another with the built-in pusher) and 'nudge' (1 -> 1), written against the public API and
+installed as an entry point of a throwaway distribution (a *.dist-info on sys.path, no pip)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import textwrap
+
+import pytest
+import torch
+
+from pasta.cli import main
+from pasta.core.errors import ConfigError
+
+PLUGIN = '''
+"""Two skills made of public pasta API only: each demonstration pushes the right-most dough piece to the left."""
+import numpy as np
+
+from pasta.core import Controller, Skill, SkillSpec, ToolPose
+from pasta.plugins import hookimpl
+
+HEIGHT = 0.06
+PUSHER_HALF_X, PUSHER_HALF_Y = 0.015, 0.05  # the built-in pusher's paddle (thin along x)
+STEP = 0.01  # the pusher's travel per env step at action 1
+
+
+class PushLeft(Controller):
+    """The pusher moves left at full speed for ``steps`` env steps."""
+
+    def __init__(self, steps):
+        self.steps, self.taken = steps, 0
+
+    def act(self, obs):
+        if self.taken >= self.steps:
+            return np.zeros(4, np.float32), True
+        self.taken += 1
+        return np.array([-1.0, 0.0, 0.0, 0.0], np.float32), False
+
+
+class PushLeftSkill(Skill):
+    max_steps = 40
+
+    def expert_approach_pose(self, piece, params, scene=None):
+        moved = piece[piece[:, 0] > params["split_x"]]  # the piece the pusher moves
+        y = float(np.percentile(moved[:, 1], 1)) - 0.005 + PUSHER_HALF_Y
+        return ToolPose((float(moved[:, 0].max()) + PUSHER_HALF_X + 0.008, y, float(moved[:, 2].mean())), 0.0)
+
+    def expert(self, params):
+        return PushLeft(int(np.ceil(params["travel"] / STEP)))
+
+
+class MergeSkill(PushLeftSkill):
+    spec = SkillSpec("merge", n_in=2, n_out=1, tool="pusher", description="push one piece into another")
+    training_defaults = {"feasibility": {"stride": 2}}
+
+    def demo_scene(self, rng, floor_y, variant="default"):
+        z, left, gap = rng.uniform(0.4, 0.6), rng.uniform(0.35, 0.45), rng.uniform(0.06, 0.08)
+        size = (0.05, HEIGHT, 0.06)
+        return [((left, floor_y + HEIGHT / 2, z), size), ((left + 0.05 + gap, floor_y + HEIGHT / 2, z), size)]
+
+    def sample_expert_params(self, piece, rng):
+        x = np.sort(piece[:, 0])
+        i = int(np.argmax(np.diff(x)))  # the gap between the two boxes
+        return {"split_x": float(x[i] + x[i + 1]) / 2, "travel": float(x[i + 1] - x[i])}
+
+
+class NudgeSkill(PushLeftSkill):
+    spec = SkillSpec("nudge", n_in=1, n_out=1, tool="pusher", description="push a piece a little to the left")
+
+    def demo_scene(self, rng, floor_y, variant="default"):
+        return [((rng.uniform(0.5, 0.6), floor_y + HEIGHT / 2, rng.uniform(0.4, 0.6)), (0.06, HEIGHT, 0.06))]
+
+    def sample_expert_params(self, piece, rng):
+        return {"split_x": float(piece[:, 0].min()) - 1.0, "travel": float(rng.uniform(0.04, 0.08))}
+
+
+class LazySkill(Skill):
+    spec = SkillSpec("lazy", n_in=1, n_out=1, tool="pusher", description="no expert, no demonstrations")
+
+
+@hookimpl
+def pasta_register_skills(register):
+    register(spec=MergeSkill.spec, factory="merge_plugin:MergeSkill")
+    register(spec=NudgeSkill.spec, factory="merge_plugin:NudgeSkill")
+    register(spec=LazySkill.spec, factory="merge_plugin:LazySkill")
+'''
+
+TINY_VAE = {"epochs": "1", "width": "16", "fold_hidden": "16", "input_points": "64", "target_points": "64",
+            "emd_points": "16", "num_points": "128", "stride": "2", "batch_size": "8"}
+TINY_FEASIBILITY = {"epochs": "1", "hidden": "16", "num_points": "128", "match_points": "64", "hard_per_positive": "2"}
+TINY_POLICY = {"epochs": "1", "steps_per_epoch": "2", "val_batches": "1", "batch_size": "4", "dough_points": "32",
+               "tool_points": "8", "goal_points": "32"}
+
+
+@pytest.fixture
+def merge_plugin(tmp_path, monkeypatch, fresh_plugins):
+    """The plugin installed as the entry point 'merge' of distribution merge-pkg; the plugin cache rescanned
+    (and rescanned again without it afterwards, by ``fresh_plugins``)."""
+    root = tmp_path / "site"
+    info = root / "merge_pkg-0.1.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: merge-pkg\nVersion: 0.1\n")
+    (info / "entry_points.txt").write_text("[pasta.plugins]\nmerge = merge_plugin\n")
+    (root / "merge_plugin.py").write_text(textwrap.dedent(PLUGIN))
+    monkeypatch.syspath_prepend(str(root))
+    yield fresh_plugins()
+    sys.modules.pop("merge_plugin", None)
+
+
+def test_plugin_skills_with_an_expert_are_the_demo_skills(merge_plugin, tmp_path, capsys):
+    from pasta.demos import DemoConfig, demo_skills, validate
+    from pasta.train.pipeline import PipelineConfig, plan
+
+    assert demo_skills() == ["cut", "merge", "nudge", "push", "roll"]  # not lazy: it has no expert
+    with pytest.raises(ConfigError, match="skill 'lazy' cannot make demonstrations: its plugin does not define "
+                                          "demo_scene, sample_expert_params, expert_approach_pose, expert"):
+        validate(DemoConfig(skill="lazy", out=str(tmp_path)))
+    assert main(["demos", "skill=lazy", f"out={tmp_path}"]) == 2
+    assert "skills with demonstrations: cut, merge, nudge, push, roll" in capsys.readouterr().err
+    # the pipeline's default skill set is every skill that can make demonstrations, with their own settings
+    units = {u.name: u for u in plan(PipelineConfig(stages="demos,feasibility"), {})}
+    assert "demos/merge" in units and "demos/lazy" not in units
+    assert units["feasibility/merge"].configs[1].stride == 2 and units["feasibility/nudge"].configs[1].stride == 1
+    with pytest.raises(ConfigError, match="lazy"):
+        plan(PipelineConfig(stages="demos", skills="merge,lazy"), {})
+
+
+@pytest.mark.sim
+def test_two_to_one_and_one_to_one_plugin_skills_demos_and_training(merge_plugin, tmp_path):
+    """2 demonstrations of each, then a tiny VAE, 1 epoch of feasibility and of policy training, through
+    ``pasta pipeline`` with the plugin's skills (what `pasta demos` / `pasta train` run one by one)."""
+    from pasta.core.decompose import decompose
+    from pasta.nn.loading import load_feasibility
+    from pasta.train.data import load_demos
+    from pasta.train.pipeline import run_pipeline
+
+    data, out = tmp_path / "demos", tmp_path / "models"
+    stage_args = [f"{stage}.{k}={v}" for stage, values in (("vae", TINY_VAE), ("feasibility", TINY_FEASIBILITY),
+                                                           ("policy", TINY_POLICY)) for k, v in values.items()]
+    results = run_pipeline([f"data={data}", f"out={out}", "stages=demos,vae,feasibility,policy", "skills=merge,nudge",
+                            "num_demos=2", "workers=0", "progress=false", "demos.n_particles=2000",
+                            "demos.obs_points=400", *stage_args], echo=lambda _: None)
+    assert {r.name: r.status for r in results} == {n: "ran" for n in (
+        "demos/merge", "demos/nudge", "vae", "feasibility/merge", "feasibility/nudge", "policy/merge", "policy/nudge")}
+
+    manifest = json.loads((data / "manifest.json").read_text())
+    assert manifest["counts"] == {"merge": 2, "nudge": 2} and manifest["skills"]["merge"]["tool"] == "pusher"
+    for demo in load_demos(data, ["merge"]):
+        assert demo.dough.shape[1:] == (400, 3) and demo.action.shape[1] == 4 and len(demo.params["scenes"]) == 2
+        # the expert pushed one box into the other: two pieces before, one after
+        assert len(decompose(demo.dough[0], num_points=128)) == 2 and len(decompose(demo.after, num_points=128)) == 1
+    for demo in load_demos(data, ["nudge"]):
+        assert "scene" in demo.params and len(decompose(demo.after, num_points=128)) == 1
+        assert demo.after[:, 0].mean() < demo.dough[0][:, 0].mean() - 0.02  # pushed left
+
+    for name, (n_in, n_out) in (("merge", (2, 1)), ("nudge", (1, 1))):
+        metrics = json.loads((out / "feasibility" / name / "metrics.json").read_text())
+        assert metrics["train_positives"] > 0 and 0.0 <= metrics["heldout_auc_hard"] <= 1.0
+        skill = merge_plugin.skills.create(name)
+        skill.attach_feasibility(load_feasibility(out / "feasibility" / name, skill=name, n_in=n_in, n_out=n_out))
+        f = skill.feasibility(torch.zeros(3, n_in, 5), torch.zeros(3, n_out, 5))
+        assert f.shape == (3,) and bool(((f >= 0) & (f <= 1)).all())
+        policy = json.loads((out / "policy" / name / "metrics.json").read_text())
+        assert policy["skill"] == name and policy["train_demos"] == 1

@@ -1,0 +1,83 @@
+"""Choosing the skill set (``skills=`` or every skill with trained weights): one rule for run, eval and plan."""
+
+from __future__ import annotations
+
+import pytest
+
+from pasta.core.errors import ConfigError, MissingComponentError, PluginNotFoundError
+from pasta.execute.skillset import choose_skills, parse_skill_names
+from pasta.plugins import get_plugins
+from pasta.plugins.analytic import AnalyticPlugin
+from pasta.plugins.registry import discover
+from pasta.weights import ROOT
+
+
+def models(tmp_path, *modules):
+    """A models root holding (empty) checkpoint files for ``modules`` such as ``feasibility/cut``."""
+    for rel in modules:
+        (tmp_path / rel).mkdir(parents=True)
+        for name in ("model.safetensors", "model.json"):
+            (tmp_path / rel / name).write_text("")
+    return tmp_path
+
+
+def test_shipped_weights_cover_the_builtin_skills():
+    choice = choose_skills(None, ROOT)
+    assert choice.names == get_plugins().skills.names() and not choice.left_out and choice.warning() is None
+
+
+def test_skills_without_weights_are_left_out_with_one_warning_line(tmp_path):
+    root = models(tmp_path, "feasibility/cut", "feasibility/push")
+    choice = choose_skills(None, root)
+    assert choice.names == ["cut", "push"] and list(choice.left_out) == ["roll"]
+    line = choice.warning()
+    assert "\n" not in line and line.startswith(f"warning: skills without trained weights under {root} are left out: roll")
+    assert f"`pasta train feasibility data=DIR out={root} skill=roll`" in line
+    assert f"`pasta pipeline skills=roll out={root}`" in line
+
+
+def test_naming_a_skill_without_weights_is_an_error(tmp_path):
+    root = models(tmp_path, "feasibility/cut", "feasibility/push")
+    with pytest.raises(MissingComponentError, match=r"skill 'roll' has no feasibility network .*skill=roll"):
+        choose_skills("cut,roll", root)
+    assert choose_skills("push,cut", root).names == ["push", "cut"]  # the given order
+
+
+def test_unknown_or_repeated_names_list_the_known_skills():
+    with pytest.raises(PluginNotFoundError, match="unknown skill 'rol'; did you mean 'roll'.*known skills: cut, push, roll"):
+        choose_skills("cut,rol", ROOT)
+    with pytest.raises(ConfigError, match="names cut more than once"):
+        parse_skill_names("cut,push,cut")
+    assert parse_skill_names(" cut , ,push") == ["cut", "push"] and parse_skill_names("") == []
+
+
+def test_learned_controllers_need_policies(tmp_path):
+    root = models(tmp_path, "feasibility/cut", "feasibility/push", "feasibility/roll", "policy/cut")
+    choice = choose_skills(None, root, policy=True)
+    assert choice.names == ["cut"] and set(choice.left_out) == {"push", "roll"}
+    assert "policy (" in choice.warning() and "pasta train policy" in choice.warning()
+
+
+def test_flat_method_looks_under_flat(tmp_path):
+    root = models(tmp_path, "feasibility/cut", "flat/feasibility/push")
+    assert choose_skills(None, root, flat=True).names == ["push"]
+
+
+def test_skills_computing_their_own_feasibility_need_no_network(tmp_path):
+    plugins = discover(extra={"analytic": AnalyticPlugin()})
+    choice = choose_skills(None, tmp_path, plugins=plugins)
+    assert choice.names == ["flatten", "move", "split"] and set(choice.left_out) == {"cut", "push", "roll"}
+
+
+def test_no_skill_with_weights_is_an_error(tmp_path):
+    with pytest.raises(MissingComponentError, match=f"no registered skill has trained weights under {tmp_path}"):
+        choose_skills(None, tmp_path)
+
+
+def test_require_says_why_a_needed_skill_is_missing(tmp_path):
+    choice = choose_skills(None, models(tmp_path, "feasibility/cut", "feasibility/push"))
+    with pytest.raises(ConfigError, match=r"task 'crs' needs the skills cut, push, roll; left out: 'roll': feasibility network"):
+        choice.require(("cut", "push", "roll"), "task 'crs'")
+    given = choose_skills("cut", tmp_path)
+    with pytest.raises(ConfigError, match="'push': not in skills="):
+        given.require(("cut", "push"), "skeleton=")
