@@ -37,12 +37,12 @@ def pinch_installed(tmp_path, monkeypatch, fresh_plugins):
 def test_listed_with_its_tool_skill_and_planner(pinch_installed, capsys):
     plugins = pinch_installed
     assert not plugins.failures
-    assert "gripper" in plugins.tools and "beam" in plugins.planners
+    assert "pincer" in plugins.tools and "beam" in plugins.planners
     info = plugins.skills.info("pinch")
-    assert (info.spec.n_in, info.spec.n_out, info.spec.tool, info.distribution) == (2, 1, "gripper", "pasta-pinch")
+    assert (info.spec.n_in, info.spec.n_out, info.spec.tool, info.distribution) == (2, 1, "pincer", "pasta-pinch")
     assert main(["plugins"]) == 0
     out = capsys.readouterr().out
-    assert "pinch" in out and "gripper" in out and "beam" in out
+    assert "pinch" in out and "pincer" in out and "beam" in out
 
 
 def test_contract_suites_pass_for_the_example(pinch_installed):
@@ -66,7 +66,7 @@ def test_demos_training_planning_and_execution(pinch_installed, tmp_path):
     demos = list(load_demos(data, ["pinch"]))
     assert len(demos) == 2
     for demo in demos:
-        assert demo.action.shape[1] == 5  # the gripper's x, y, z, yaw, open
+        assert demo.action.shape[1] == 5  # the pincer's x, y, z, yaw, open
         assert len(decompose(demo.dough[0], num_points=128)) == 2 and len(decompose(demo.after, num_points=128)) == 1
 
     # 1 epoch of feasibility training on the shipped VAE, into a models root that also has the shipped cost

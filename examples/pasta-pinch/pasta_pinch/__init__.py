@@ -1,1 +1,1 @@
-"""pasta-pinch: an example third-party pasta plugin (a gripper tool, a 2 -> 1 pinch skill, a beam planner)."""
+"""pasta-pinch: an example third-party pasta plugin (a pincer tool: a parallel gripper, a 2 -> 1 pinch skill, a beam planner)."""

@@ -1,4 +1,4 @@
-"""What pasta reads when it lists plugins: the gripper tool, the pinch skill and the beam planner.
+"""What pasta reads when it lists plugins: the pincer tool, the pinch skill and the beam planner.
 
 Registration is metadata only: this module imports neither torch nor taichi, and the skill and planner
 classes are named by ``"module:Class"`` strings that pasta imports when they are built.
@@ -17,8 +17,8 @@ from pasta.planning import LatentPlannerConfig
 FINGER_HALF = (0.01, 0.04, 0.05)
 OPEN_APERTURE = 0.3
 
-GRIPPER = ToolSpec(
-    "gripper",
+PINCER = ToolSpec(
+    "pincer",
     description="a parallel gripper: two fingers whose gap is an action component",
     primitives=(FingerPair(half=FINGER_HALF, aperture=OPEN_APERTURE, min_aperture=0.0, max_aperture=0.34),),
     # (dx, dy, dz) 1 cm, yaw 0.025 rad and the aperture 1 cm per env step at action 1
@@ -29,7 +29,7 @@ GRIPPER = ToolSpec(
     color="tab:orange",
 )
 
-SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="gripper", description="squeeze two pieces into one with the gripper")
+SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="pincer", description="squeeze two pieces into one with the pincer")
 
 
 @dataclass
@@ -63,7 +63,7 @@ class BeamConfig(LatentPlannerConfig):
 
 @hookimpl
 def pasta_register_tools(register):
-    register(spec=GRIPPER)
+    register(spec=PINCER)
 
 
 @hookimpl

@@ -1,7 +1,7 @@
-"""The pinch skill: the gripper closes on two pieces lying side by side and presses them into one.
+"""The pinch skill: the pincer closes on two pieces lying side by side and presses them into one.
 
 Geometry, all in the horizontal (x, z) plane: the *axis* is the line between the two pieces (the main
-axis of their points together). The gripper is turned so its fingers close along the axis, centred
+axis of their points together). The pincer is turned so its fingers close along the axis, centred
 on the span of the points along it, fingers low. Closing is the whole motion: ``open`` = -1 per env
 step until the gap between the fingers is the target width.
 
@@ -20,11 +20,11 @@ import math
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
-from pasta_pinch.plugin import FINGER_HALF, GRIPPER, SPEC, PinchConfig
+from pasta_pinch.plugin import FINGER_HALF, PINCER, SPEC, PinchConfig
 
-OPEN = GRIPPER.channels.index("open")
-ACTION_DIM = GRIPPER.action_dim
-CLOSE_STEP = GRIPPER.scale("open")
+OPEN = PINCER.channels.index("open")
+ACTION_DIM = PINCER.action_dim
+CLOSE_STEP = PINCER.scale("open")
 
 
 def closing_axis(points: np.ndarray) -> np.ndarray:
@@ -86,7 +86,7 @@ class PinchController(Controller):
 
 
 def approach(piece: np.ndarray, lift: float, floor_y: float) -> ToolPose:
-    """Gripper centred on ``piece (P, 3)`` (both pieces) along their axis, fingers closing along it."""
+    """Pincer centred on ``piece (P, 3)`` (both pieces) along their axis, fingers closing along it."""
     piece = np.asarray(piece, np.float64)
     axis = closing_axis(piece)
     xz = piece[:, [0, 2]]
@@ -99,7 +99,7 @@ def approach(piece: np.ndarray, lift: float, floor_y: float) -> ToolPose:
 
 
 class PinchSkill(Skill):
-    """squeeze two pieces into one with the gripper (2 -> 1 entities, tool: gripper)."""
+    """squeeze two pieces into one with the pincer (2 -> 1 entities, tool: pincer)."""
 
     spec = SPEC
     sweep_half_width = FINGER_HALF[2]
@@ -142,7 +142,7 @@ class PinchSkill(Skill):
         return PinchController(self.config)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(GRIPPER.park, 0.0)
+        return ToolPose(PINCER.park, 0.0)
 
 
 def _floor(piece: np.ndarray) -> float:
