@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 HELP = ("generate demonstrations of a skill with its scripted expert on the scenes its plugin draws "
         "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points, scene); "
@@ -15,11 +16,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from pasta.demos.generate import DemoConfig, generate_demos, validate
+    from pasta.demos.workers import DemoWorkerError
     from pasta.config.overrides import build_many
 
     cfg = build_many(args.overrides, [DemoConfig], command="pasta demos")[0]
     validate(cfg)  # every bad argument fails here, before a simulator starts
-    summary = generate_demos(cfg)
+    try:
+        summary = generate_demos(cfg)
+    except DemoWorkerError as exc:  # not a usage error (exit 2): the run itself could not finish
+        print(f"pasta demos: error: {exc}", file=sys.stderr)
+        return 1
     print(f"demos {cfg.skill}: {summary['generated']} generated, {summary['skipped']} already there, "
           f"{summary['wall_s']:.1f} s, {summary['mean_steps']:.1f} steps per demo on average -> {cfg.out}/{cfg.skill}")
     return 0

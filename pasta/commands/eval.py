@@ -89,6 +89,7 @@ def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import print_skill_warning, split_overrides
     from pasta.config.overrides import build_many
     from pasta.execute.session import build_session
+    from pasta.io.provenance import provenance
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
     own_run, execute_kw, rest = split_overrides(list(args.overrides))
@@ -112,6 +113,11 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"split must be 'test' or 'val', got {opts.split!r}{did_you_mean(opts.split, ('test', 'val'))}")
     if any(i.partition("=")[0].strip() == "seed" for i in passthrough):
         raise ConfigError("pasta eval runs the fixed test seeds (1000, 1001, ...); use num=N, not seed=")
+    from pasta.config.validate import check_int, check_output_dir, check_output_file, check_threads
+
+    check_threads(opts.threads, "threads")
+    check_int(opts.horizon, "horizon", low=0)
+    check_output_dir(opts.out, "out")  # before any model is loaded: a bad out= must not cost an evaluation
     if opts.threads > 0:
         import torch
 
@@ -121,24 +127,32 @@ def run(args: argparse.Namespace) -> int:
                             skills=opts.skills or None)
     print_skill_warning(session)
     path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split, opts.skills)
+    check_output_file(path, "out")  # e.g. a directory of the result file's name in out=
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
     if opts.resume and path.exists():
-        for line in path.read_text().splitlines():
+        for number, line in enumerate(path.read_text().splitlines(), 1):
             if line.strip():
-                row = json.loads(line)
-                done[int(row["seed"])] = row
+                try:
+                    row = json.loads(line)
+                    done[int(row["seed"])] = row
+                except (ValueError, KeyError, TypeError) as exc:
+                    raise ConfigError(f"out={opts.out}: line {number} of {path} is not a result row ({exc}); "
+                                      "fix or delete it, or pass resume=false to start over") from None
     elif path.exists():
         path.unlink()
     seeds = fixed_test_seeds(opts.num) if opts.split == "test" else fixed_val_seeds(opts.num)
     todo = [s for s in seeds if s not in done]
     print(f"eval {opts.task} / {opts.method}: {len(seeds)} {opts.split} configs, {len(seeds) - len(todo)} already in {path}",
           file=sys.stderr)
-    sim = session.task.make_sim() if todo else None
+    sim = session.task.make_sim()  # also when nothing is left to run: it starts Taichi, whose settings are recorded
+    # versions, CPU, Taichi arch and compile options: results differ slightly between machines (docs/simulator.md)
+    machine = provenance(sim_config=session.task.sim_config)
     for i, seed in enumerate(todo):
         t0 = time.perf_counter()
         out = session.episode(seed, sim=sim)
-        row = {**out.to_dict(), "wall_s": round(time.perf_counter() - t0, 2), "setup": session.describe()}
+        row = {**out.to_dict(), "wall_s": round(time.perf_counter() - t0, 2), "setup": session.describe(),
+               "provenance": machine}
         with path.open("a") as f:  # one line per finished episode: nothing is lost on interruption
             f.write(json.dumps(row) + "\n")
         done[seed] = row
@@ -147,7 +161,8 @@ def run(args: argparse.Namespace) -> int:
               f"{'success' if out.success else 'failure'}  (plan {out.plan_s:.1f} s, execute {out.execute_s:.1f} s)",
               file=sys.stderr, flush=True)
     rows = [done[s] for s in seeds]
-    summary = {**session.describe(), "split": opts.split, "seeds": [seeds[0], seeds[-1]], **summarise(rows)}
+    summary = {**session.describe(), "split": opts.split, "seeds": [seeds[0], seeds[-1]], **summarise(rows),
+               "provenance": machine}
     path.with_suffix(".json").write_text(json.dumps(summary, indent=2) + "\n")
     print(f"{opts.task} / {opts.method}: normalised improvement {summary['improvement_mean']:.3f} +/- "
           f"{summary['improvement_std']:.3f}, success {100 * summary['success_rate']:.0f}% over {len(rows)} configs "

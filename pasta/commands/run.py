@@ -74,27 +74,36 @@ def run(args: argparse.Namespace) -> int:
     own, execute_kw, rest = split_overrides(list(args.overrides))
     if not own.get("task"):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
+    threads, horizon = check_own(own)  # before anything is loaded or computed
     import torch
 
-    torch.set_num_threads(int(own.get("threads", 1)))  # see `pasta eval`: 1 is fastest on a shared CPU
+    if threads > 0:
+        torch.set_num_threads(threads)  # see `pasta eval`: 1 is fastest on a shared CPU
     session = build_session(own["task"], method=own.get("method", "pasta"), models=own.get("models"),
-                            config_overrides=rest, execute=execute_kw, horizon=int(own.get("horizon") or 0) or None,
+                            config_overrides=rest, execute=execute_kw, horizon=horizon or None,
                             skeleton=own.get("skeleton", "auto"), skills=own.get("skills") or None)
     print_skill_warning(session)
     seed = int(session.cfg.seed)
+    sim = session.task.make_sim()  # starts Taichi, so the log records the runtime's real compile options
     logger = None
     if own.get("log"):
         from pasta.io import RunLogger
+        from pasta.io.provenance import PROVENANCE_RECORD, provenance
 
         meta = {**{k: str(v) for k, v in session.describe().items()}, "seed": str(seed),
                 "pasta": __import__("pasta").__version__}
         logger = RunLogger(own["log"], config_yaml=to_yaml(session.cfg) + "execute: "
                            + json.dumps(dataclasses.asdict(session.exe)) + "\n", metadata=meta)
     try:
-        out = session.episode(seed, logger=logger)
-    finally:
+        if logger is not None:  # versions, CPU and Taichi settings, so a run can be compared across machines
+            logger.add_metadata(PROVENANCE_RECORD, provenance(sim_config=session.task.sim_config))
+        out = session.episode(seed, logger=logger, sim=sim)
+    except BaseException as exc:  # the log records why the run ended (status "failed"), then the error goes on
         if logger is not None:
-            logger.close()
+            logger.close(error=exc)
+        raise
+    if logger is not None:
+        logger.close()
     if out.plan is not None:
         print(out.plan.summary())
     if out.result is not None:
@@ -113,6 +122,19 @@ def run(args: argparse.Namespace) -> int:
         path = write_summary(own["summary"], session, out)
         print(f"summary image: {path}")
     return 0
+
+
+def check_own(own: dict[str, str]) -> tuple[int, int]:
+    """Validate this command's own keys before any work: ``(threads, horizon)``; output paths
+    (``log=``, ``summary=``) must be writable files, so a finished episode is never lost to a bad path."""
+    from pasta.config.validate import check_int, check_output_file, check_threads
+
+    threads = check_threads(own.get("threads", "1"), "threads")
+    horizon = check_int(own.get("horizon") or 0, "horizon", low=0)
+    for key in ("log", "summary"):
+        if own.get(key):
+            check_output_file(own[key], key)
+    return threads, horizon
 
 
 def print_skill_warning(session: Any) -> None:

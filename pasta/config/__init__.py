@@ -2,11 +2,15 @@
 
 Group keys (:data:`GROUPS`) pick a registered plugin by name and swap in that plugin's config
 dataclass as the whole section: ``planner=sampling planner.num_samples=2000``. Unknown keys and wrong
-types fail with a :class:`~pasta.core.errors.ConfigError` naming the key and the closest valid key.
+types fail with a :class:`~pasta.core.errors.ConfigError` naming the key and the closest valid key; values
+are range-checked when the config is resolved (:func:`validate_config`: the seed, every ``device`` and
+whatever each section's dataclass checks in its ``__post_init__``), so every command refuses the same
+values before it computes anything.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
@@ -80,7 +84,33 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
         raise ConfigError(f"config key '{exc.full_key}': {str(exc.msg).splitlines()[0]}") from None
     except OmegaConfBaseException as exc:
         raise ConfigError(f"invalid config: {exc.msg}") from None
+    validate_config(cfg)
     return cfg  # type: ignore[return-value]
+
+
+def validate_config(cfg: DictConfig) -> None:
+    """Range-check a resolved run config; raise a one-line :class:`ConfigError` naming the key.
+
+    Checks ``seed`` (:func:`~pasta.config.validate.check_seed`), every ``device`` (top level and in each
+    section; :func:`~pasta.config.validate.check_device`) and builds each group section's dataclass once,
+    so its ``__post_init__`` checks (e.g. :class:`pasta.planning.LatentPlannerConfig`) run now.
+    """
+    from pasta.config.validate import check_device, check_seed
+
+    check_seed(cfg.seed, "seed")
+    check_device(cfg.device, "device")
+    for group in GROUPS:
+        node = cfg.get(group)
+        if not isinstance(node, DictConfig):
+            continue
+        if "device" in node:
+            check_device(node.device, f"{group}.device")
+        try:
+            OmegaConf.to_object(node)
+        except ConfigError as exc:
+            raise ConfigError(_prefixed(str(exc), group)) from None
+        except OmegaConfBaseException as exc:
+            raise ConfigError(f"config section '{group}': {str(exc.msg).splitlines()[0]}") from None
 
 
 def section(cfg: DictConfig, key: str) -> Any:
@@ -90,6 +120,13 @@ def section(cfg: DictConfig, key: str) -> Any:
 
 def to_yaml(cfg: DictConfig) -> str:
     return OmegaConf.to_yaml(cfg, resolve=True)
+
+
+def _prefixed(message: str, group: str) -> str:
+    """A section check that names only its field (``lr=nan: ...``) gets the section (``planner.lr=nan: ...``)."""
+    if re.match(r"[A-Za-z_]\w*=", message) and not message.startswith(f"{group}."):
+        return f"{group}.{message}"
+    return f"config section '{group}': {message}" if not message.startswith(f"{group}.") else message
 
 
 def _unknown_key(cfg: DictConfig, exc: OmegaConfBaseException) -> ConfigError:

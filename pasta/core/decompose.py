@@ -6,6 +6,10 @@ then ``z``, then ``y``) and each is resampled to ``num_points`` points with a se
 
 The same function serves training data (``min_points=10`` in the paper) and planning/execution (the
 paper's release silently used 50 there; callers pass what they mean).
+
+DBSCAN's memory grows with the number of neighbour pairs, i.e. with the square of the point count for a
+dense cloud (1e5 points took 6 GB). Callers that accept clouds of any size bound them first with
+:func:`voxel_downsample`.
 """
 
 from __future__ import annotations
@@ -14,7 +18,7 @@ import numpy as np
 
 from pasta.core.errors import InputError
 
-__all__ = ["decompose", "decompose_labels", "resample"]
+__all__ = ["decompose", "decompose_labels", "resample", "voxel_downsample"]
 
 
 def decompose_labels(
@@ -98,6 +102,74 @@ def resample(points: np.ndarray, num_points: int, rng: np.random.Generator) -> n
         idx = np.concatenate([np.arange(n), rng.choice(n, size=num_points - n, replace=True)])
         idx = rng.permutation(idx)
     return np.ascontiguousarray(points[idx], dtype=np.float32)
+
+
+def voxel_downsample(points: np.ndarray, max_points: int) -> tuple[np.ndarray, float]:
+    """Bound a cloud ``(P, 3)`` to at most ``max_points`` points by averaging the points of each voxel.
+
+    A cloud with ``P <= max_points`` comes back unchanged (as float32), with voxel size 0. Otherwise the
+    voxel edge is the smallest one (found by bisection on a grid anchored at the cloud's minimum corner,
+    to within 1%) whose occupied voxels number at most ``max_points``; each occupied voxel becomes the
+    mean of its points. Numpy only and sequential sums, so the result is deterministic; voxels come in
+    the order of their grid index.
+
+    Args:
+        points: ``(P, 3)`` finite cloud (``np.ndarray``).
+        max_points: the bound, ``>= 1``.
+
+    Returns:
+        ``(points (Q, 3) float32 with Q <= max_points, voxel edge)``.
+
+    Raises:
+        InputError: empty, non-finite or wrongly shaped ``points``; ``max_points < 1``.
+    """
+    if max_points < 1:
+        raise InputError(f"max_points must be >= 1, got {max_points}")
+    pts = _check_cloud(points)
+    if len(pts) <= max_points:
+        return np.ascontiguousarray(pts, dtype=np.float32), 0.0
+    low = pts.min(0)
+    extent = pts.max(0) - low
+    span = float(extent.max())
+    if span == 0.0:  # every point is the same point
+        return np.ascontiguousarray(pts[:1], dtype=np.float32), 0.0
+    # an edge just above the span puts every point in one voxel: always within the bound; edges are
+    # searched down to span / 2**20 only, so a voxel index always fits the 21 bits _voxel_keys gives it
+    fits, finest = span * (1 + 1e-6), span / 2**20
+    # first guess: the edge at which a cloud filling its bounding box would occupy max_points voxels
+    guess = float(np.prod(np.maximum(extent, span * 1e-3)) / max_points) ** (1 / 3)
+    too_fine, edge = None, min(max(guess, finest), fits)
+    while True:  # halve until the bound is exceeded (a cloud of few distinct points may never exceed it)
+        if _voxel_count(pts, low, edge) > max_points:
+            too_fine = edge
+            break
+        fits = edge
+        if edge <= finest:
+            break
+        edge = max(edge / 2, finest)
+    if too_fine is not None:
+        while fits / too_fine > 1.01:
+            mid = (fits * too_fine) ** 0.5
+            if _voxel_count(pts, low, mid) > max_points:
+                too_fine = mid
+            else:
+                fits = mid
+    keys = _voxel_keys(pts, low, fits)
+    uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    sums = np.stack([np.bincount(inverse, weights=pts[:, a], minlength=len(uniq)) for a in range(3)], 1)
+    return np.ascontiguousarray(sums / counts[:, None], dtype=np.float32), fits
+
+
+def _voxel_keys(pts: np.ndarray, low: np.ndarray, edge: float) -> np.ndarray:
+    """One int64 key per point: its voxel's grid index ``(i, j, k)`` packed in 21 bits each."""
+    cells = np.floor((pts - low) / edge).astype(np.int64)
+    return (cells[:, 0] << 42) | (cells[:, 1] << 21) | cells[:, 2]
+
+
+def _voxel_count(pts: np.ndarray, low: np.ndarray, edge: float) -> int:
+    keys = _voxel_keys(pts, low, edge)
+    keys.sort()
+    return int(1 + np.count_nonzero(keys[1:] != keys[:-1]))
 
 
 def _check_cloud(points: object) -> np.ndarray:

@@ -9,6 +9,7 @@ entities first, then the entities the skill did not touch in their previous orde
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -19,6 +20,9 @@ Latents = tuple[tuple[float, ...], ...]
 """A JSON-friendly ``(K, D)`` latent set."""
 
 FORMAT_VERSION = 1
+
+#: slack on the ``[0, 1]`` ranges of scores and feasibilities, for float rounding in planners
+RANGE_TOLERANCE = 1e-6
 
 
 def kept_indices(num_entities: int, inputs: Sequence[int]) -> tuple[int, ...]:
@@ -126,26 +130,75 @@ class Plan:
             d["timings"] = dict(self.timings)
         return d
 
+    def problems(self) -> list[str]:
+        """What is wrong with this plan's numbers, one phrase each (empty when it is valid).
+
+        Valid: ``score`` and every step's ``feasibility`` finite and in ``[0, 1]``, ``final_cost`` finite
+        and ``>= 0``, and every latent (``initial``, ``goal``, each step's ``subgoal`` and ``state``) finite.
+        """
+        out = []
+        for name, value, low, high in [("score", self.score, 0.0, 1.0), ("final_cost", self.final_cost, 0.0, math.inf)]:
+            out += _range_problem(name, value, low, high)
+        out += _latent_problems("initial", self.initial) + _latent_problems("goal", self.goal)
+        for h, s in enumerate(self.steps):
+            where = f"step {h + 1} ({s.skill})"
+            out += _range_problem(f"{where} feasibility", s.feasibility, 0.0, 1.0)
+            out += _latent_problems(f"{where} subgoal", s.subgoal) + _latent_problems(f"{where} state", s.state)
+        return out
+
+    def check(self) -> Plan:
+        """Return the plan if :meth:`problems` finds nothing, else raise :class:`InputError` naming every problem."""
+        found = self.problems()
+        if found:
+            raise InputError(f"plan by {self.planner!r} is not valid: " + "; ".join(found))
+        return self
+
     def to_json(self, *, timings: bool = True, indent: int | None = 2) -> str:
-        """Serialise to JSON. ``timings=False`` drops wall-clock figures, so equal plans give equal bytes."""
-        return json.dumps(self.to_dict(timings=timings), indent=indent, sort_keys=True)
+        """Serialise to strict JSON (no NaN/Infinity literals). ``timings=False`` drops wall-clock figures,
+        so equal plans give equal bytes.
+
+        Raises:
+            InputError: the plan is not valid (:meth:`check`), or ``info`` holds a non-finite number or a
+                value JSON cannot represent.
+        """
+        self.check()
+        try:
+            return json.dumps(self.to_dict(timings=timings), indent=indent, sort_keys=True, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"plan by {self.planner!r} cannot be written as strict JSON: {exc}") from None
 
     @classmethod
     def from_json(cls, text: str) -> Plan:
-        d = json.loads(text)
-        if d.get("format_version") != FORMAT_VERSION:
-            raise InputError(f"plan format_version {d.get('format_version')!r} is not {FORMAT_VERSION}")
-        return cls(
-            steps=tuple(PlanStep.from_dict(s) for s in d["steps"]),
-            initial=as_latents(d["initial"]),
-            goal=as_latents(d["goal"]),
-            final_cost=float(d["final_cost"]),
-            score=float(d["score"]),
-            planner=str(d["planner"]),
-            seed=int(d["seed"]),
-            timings={k: float(v) for k, v in d.get("timings", {}).items()},
-            info=dict(d.get("info", {})),
-        )
+        """Parse and :meth:`check` a plan written by :meth:`to_json`.
+
+        Raises:
+            InputError: not strict JSON (e.g. a ``NaN`` literal), another format version, a missing or
+                malformed field, or invalid values.
+        """
+        try:
+            d = json.loads(text, parse_constant=_reject_constant)
+        except json.JSONDecodeError as exc:
+            raise InputError(f"plan file is not valid JSON: {exc}") from None
+        if not isinstance(d, dict) or d.get("format_version") != FORMAT_VERSION:
+            version = d.get("format_version") if isinstance(d, dict) else None
+            raise InputError(f"plan format_version {version!r} is not {FORMAT_VERSION}")
+        try:
+            plan = cls(
+                steps=tuple(PlanStep.from_dict(s) for s in d["steps"]),
+                initial=as_latents(d["initial"]),
+                goal=as_latents(d["goal"]),
+                final_cost=float(d["final_cost"]),
+                score=float(d["score"]),
+                planner=str(d["planner"]),
+                seed=int(d["seed"]),
+                timings={k: float(v) for k, v in d.get("timings", {}).items()},
+                info=dict(d.get("info", {})),
+            )
+        except KeyError as exc:
+            raise InputError(f"plan file lacks the field {exc}") from None
+        except (TypeError, ValueError, AttributeError) as exc:
+            raise InputError(f"plan file has a malformed field: {exc}") from None
+        return plan.check()
 
     def summary(self) -> str:
         """Human-readable multi-line description."""
@@ -155,3 +208,21 @@ class Plan:
         if self.timings:
             lines.append("  time: " + ", ".join(f"{k} {v:.2f}s" for k, v in self.timings.items()))
         return "\n".join(lines)
+
+
+def _range_problem(name: str, value: float, low: float, high: float) -> list[str]:
+    if not math.isfinite(value):
+        return [f"{name} is {value}"]
+    if not low - RANGE_TOLERANCE <= value <= high + RANGE_TOLERANCE:
+        bounds = f"[{low:g}, {high:g}]" if math.isfinite(high) else f">= {low:g}"
+        return [f"{name} {value:g} is outside {bounds}"]
+    return []
+
+
+def _latent_problems(name: str, latents: Latents) -> list[str]:
+    bad = sum(1 for row in latents if not all(math.isfinite(v) for v in row))
+    return [f"{name} has {bad} of {len(latents)} latents with NaN or infinite values"] if bad else []
+
+
+def _reject_constant(name: str) -> float:
+    raise InputError(f"plan file is not strict JSON: it contains {name}")

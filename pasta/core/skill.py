@@ -247,6 +247,12 @@ class Skill:
         """
         raise self._missing("demonstration scene", "the skill plugin does not define `demo_scene`")
 
+    def demo_tools(self) -> dict[str, ToolPose]:
+        """Static tools a demonstration scene places besides the skill's own tool, ``{tool name: pose}``
+        (e.g. the raised board a lift sets the dough on). Placed after the dough is loaded, before it
+        settles. Default: none."""
+        return {}
+
     @classmethod
     def missing_demo_hooks(cls) -> list[str]:
         """The hooks of :attr:`DEMO_HOOKS` this class does not override (empty: it can make demonstrations)."""

@@ -20,7 +20,8 @@ Layout of a dataset directory (fixed; the trainers read it)::
 
 Demo ``i`` of a skill depends only on (seed, skill, i), so runs are reproducible and resumable: files
 that exist are skipped, and each file is written under a temporary name and renamed when complete.
-Workers are separate processes (``spawn``), each with its own Taichi runtime.
+Workers are separate processes (``spawn``), each with its own Taichi runtime; a worker that dies is
+replaced and its demo retried, and workers die with the parent (:mod:`pasta.demos.workers`).
 """
 
 from __future__ import annotations
@@ -29,7 +30,6 @@ import json
 import os
 import platform
 import time
-import traceback
 import zlib
 from dataclasses import asdict, dataclass
 from importlib import metadata
@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from pasta.core.errors import ConfigError
+from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
 from pasta.demos.scene import check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles, variant_config
 
 FORMAT = "pasta-demos/1"
@@ -180,6 +181,8 @@ class DemoWriter:
         rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])
         boxes = scene_boxes(skill, rng, sim.floor_y, cfg.scene)
         sim.reset(scene_particles(boxes, cfg.n_particles, rng)[0], seed=int(rng.integers(2**31)))
+        for name, pose in skill.demo_tools().items():
+            sim.set_tool_pose(name, pose.position, yaw=pose.yaw)
         for _ in range(cfg.settle_steps):
             sim.step()
         obs = sim.observe()
@@ -215,22 +218,29 @@ def pending(cfg: DemoConfig) -> list[int]:
     return [i for i in range(cfg.num) if not demo_path(cfg.out, cfg.skill, i).exists()]
 
 
-def _worker(cfg_dict: dict, indices: list[int], queue: Any) -> None:
-    try:
-        writer = DemoWriter(DemoConfig(**cfg_dict))
-        for i in indices:
-            steps, secs = writer.write(i)
-            queue.put(("done", i, steps, secs))
-    except BaseException:  # noqa: BLE001 - report anything to the parent
-        queue.put(("error", -1, 0, traceback.format_exc()))
-    queue.put(("exit", -1, 0, 0.0))
+def failure_report(cfg: DemoConfig, failures: dict[int, str]) -> str:
+    """The error of a run that could not make every demo: each failed demo with its seed, and how to
+    reproduce one in this process."""
+    first = min(failures)
+    rows = [f"  demo {i} (seed={cfg.seed} skill={cfg.skill} index={i}): {failures[i].splitlines()[0]}"
+            for i in sorted(failures)[:10]]
+    more = [f"  ... and {len(failures) - 10} more"] if len(failures) > 10 else []
+    detail = failures[first].partition("\n")[2].rstrip()
+    return "\n".join([f"{len(failures)} of {cfg.num} demos of {cfg.skill} could not be made "
+                      f"(the others are written; rerun to retry, demos that exist are kept):", *rows, *more,
+                      f"reproduce one in this process: pasta demos skill={cfg.skill} num={first + 1} seed={cfg.seed} "
+                      f"out={cfg.out} workers=0 scene={cfg.scene}", *([detail] if detail else [])])
 
 
-def generate_demos(cfg: DemoConfig, *, progress: bool = True) -> dict[str, Any]:
+def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int = MAX_ATTEMPTS) -> dict[str, Any]:
     """Generate the missing demonstrations of ``cfg.skill`` and update the manifest.
 
+    With ``cfg.workers > 0`` the demos are made in worker processes (:mod:`pasta.demos.workers`): a demo
+    whose worker dies is retried in a new worker, up to ``max_attempts`` times.
+
     Returns a summary: ``generated``, ``skipped``, ``wall_s``, ``mean_steps``.
-    Raises :class:`ConfigError` on bad arguments before any work, :class:`RuntimeError` when a worker fails.
+    Raises :class:`ConfigError` on bad arguments before any work, :class:`DemoWorkerError` naming the
+    demos (with their seeds) that could not be made, after the others are written.
     """
     validate(cfg)
     todo = pending(cfg)
@@ -238,7 +248,7 @@ def generate_demos(cfg: DemoConfig, *, progress: bool = True) -> dict[str, Any]:
     write_manifest(cfg)
     t0 = time.perf_counter()
     steps: list[int] = []
-    errors: list[str] = []
+    failures: dict[int, str] = {}
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
@@ -251,33 +261,16 @@ def generate_demos(cfg: DemoConfig, *, progress: bool = True) -> dict[str, Any]:
                 steps.append(n)
                 bar.advance(task)
         else:
-            import multiprocessing as mp
+            from pasta.demos.workers import run_workers
 
-            ctx = mp.get_context("spawn")
-            queue = ctx.Queue()
-            n_workers = min(cfg.workers, len(todo))
-            procs = [ctx.Process(target=_worker, args=(asdict(cfg), todo[w::n_workers], queue), daemon=True)
-                     for w in range(n_workers)]
-            for p in procs:
-                p.start()
-            alive = n_workers
-            try:
-                while alive:
-                    kind, _, n, info = queue.get()
-                    if kind == "done":
-                        steps.append(n)
-                        bar.advance(task)
-                    elif kind == "error":
-                        errors.append(str(info))
-                    else:
-                        alive -= 1
-            finally:
-                for p in procs:
-                    p.join(timeout=5)
-                    if p.is_alive():
-                        p.terminate()
+            def done(_index: int, n: int, _secs: float) -> None:
+                steps.append(n)
+                bar.advance(task)
+
+            failures = run_workers(asdict(cfg), todo, min(cfg.workers, len(todo)), done,
+                                   tmp_dir=Path(cfg.out) / cfg.skill, max_attempts=max_attempts)
     write_manifest(cfg)
-    if errors:
-        raise RuntimeError(f"{len(errors)} demo worker(s) failed; first error:\n{errors[0]}")
+    if failures:
+        raise DemoWorkerError(failure_report(cfg, failures))
     return {"generated": len(steps), "skipped": skipped, "wall_s": time.perf_counter() - t0,
             "mean_steps": float(np.mean(steps)) if steps else 0.0}

@@ -495,6 +495,7 @@ class _Log:
         self.log.point_cloud("/dough", t, obs.dough)
         self.tools(t)
         self.plan(plan)
+        self.log.flush()  # a killed run keeps its plan and initial state (fixed flush points: same bytes every run)
 
     def plan(self, plan: Plan) -> None:
         d = plan.to_dict(timings=True)
@@ -551,6 +552,7 @@ class _Log:
 
     def step_end(self, info: StepInfo) -> None:
         self.log.step_result(self.t(self.sim.step_count), {**info.to_dict(), "score": info.normalized_improvement})
+        self.log.flush()  # a killed run loses at most the step in progress
 
     def finish(self, result: ExecutionResult) -> None:
         t = self.t(self.sim.step_count)

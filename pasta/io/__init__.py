@@ -17,11 +17,13 @@ from pasta.io.run_log import (
     METRICS,
     PLAN,
     PROGRESS,
+    RUN_STATUS,
     SIM_CONFIG,
     STEP,
     SUBGOALS,
     TOOLS,
     RunLogger,
+    partial_path,
 )
 from pasta.io.run_reader import LoggedMessage, RunReader, TopicInfo
 from pasta.io.schemas import LogEntry, ToolPrimitive, step_time_ns
@@ -39,6 +41,7 @@ __all__ = [
     "METRICS",
     "PLAN",
     "PROGRESS",
+    "RUN_STATUS",
     "SIM_CONFIG",
     "STEP",
     "SUBGOALS",
@@ -52,5 +55,6 @@ __all__ = [
     "ToolPrimitive",
     "TopicInfo",
     "export_demo_to_mcap",
+    "partial_path",
     "step_time_ns",
 ]

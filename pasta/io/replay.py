@@ -3,7 +3,8 @@
 The CLI registers this module as a subcommand through :func:`add_arguments` and :func:`run`.
 
 Exit codes: 0 success; 1 ``--verify`` found a deviation above ``--tolerance`` (or could not
-verify); 2 the file could not be read (not MCAP, corrupt, truncated without ``--recover``).
+verify); 2 the file could not be read (not MCAP, corrupt, truncated without ``--recover``, or a
+``sim_config.json`` that is not a valid simulator config).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from typing import Any, Callable, TextIO
 
 import numpy as np
 
-from pasta.core.errors import PastaError
+from pasta.core.errors import ConfigError, PastaError, did_you_mean
 from pasta.io.errors import McapFormatError, McapTruncatedError
 from pasta.io.run_log import ACTIONS, DOUGH, FINAL_STATE, INITIAL_STATE, METRICS, PLAN, SIM_CONFIG, STEP, TOOLS
 from pasta.io.run_reader import RunReader
@@ -71,6 +72,8 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             if reader.recover and not reader.complete:
                 n = sum(i.count for i in reader.topic_info().values())
                 print(f"warning: recovered {n} messages from a damaged file; {reader.recover_error}", file=err)
+            elif reader.status == "failed":
+                print(f"warning: the logged run failed: {reader.error}", file=err)
             print_timeline(reader, topics, out)
             if args.export:
                 written = export_frames(
@@ -84,6 +87,9 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
                     ok, _dev = verify_run(reader, args.tolerance, out)
                 except McapFormatError:
                     raise
+                except ConfigError as e:  # the file's own sim_config.json is bad: a bad-file error, exit 2
+                    print(f"error: {e}", file=err)
+                    return EXIT_BAD_FILE
                 except PastaError as e:  # the simulator refused the logged state / config / action
                     print(f"error: verify: {e}", file=err)
                     return EXIT_VERIFY_FAILED
@@ -140,7 +146,9 @@ def print_timeline(reader: RunReader, topics: list[str] | None, out: TextIO, max
     log lines (restricted to ``topics`` when given)."""
     info = reader.topic_info()
     shown = [t for t in info if topics is None or t in topics]
-    status = "complete" if reader.complete else "RECOVERED (truncated)"
+    status = {"complete": "complete", "failed": f"FAILED: {reader.error}",
+              "truncated": "RECOVERED (truncated: the writer did not finish, e.g. the run was killed)",
+              "unknown": "finished, no status record"}[reader.status]
     print(f"run: {reader.path} ({status})", file=out)
     tr = reader.time_range()
     total = sum(i.count for i in info.values())
@@ -327,7 +335,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
 
     from pasta.sim import SimConfig, Simulator, SimState  # lazy: only verify needs the simulator
 
-    cfg = SimConfig.from_dict(json.loads(reader.attachment(SIM_CONFIG)))  # also older runs (knife_friction, ...)
+    cfg = logged_sim_config(reader)
     state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))
     sim = Simulator(cfg)
     sim.set_state(state)
@@ -370,6 +378,35 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
     verdict = "OK" if ok else "FAILED"
     say(f"verify: {n_steps} env steps re-simulated; max deviation {dev:.3e} vs {source} (tolerance {tolerance:g}): {verdict}")
     return ok, dev
+
+
+def logged_sim_config(reader: RunReader) -> Any:
+    """The run's ``sim_config.json`` as a :class:`pasta.sim.SimConfig` (older runs' ``knife_friction`` etc.
+    too). A file that is not a JSON object, an unknown key or a bad value raises a one-line
+    :class:`~pasta.core.errors.ConfigError` naming the attachment, the key and the known keys."""
+    from dataclasses import fields
+
+    from pasta.sim import SimConfig
+
+    where = f"{SIM_CONFIG} in {reader.path}"
+    try:
+        data = json.loads(reader.attachment(SIM_CONFIG))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"{where} is not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ConfigError(f"{where} must hold a JSON object of simulator settings, got {type(data).__name__}")
+    known = sorted(f.name for f in fields(SimConfig))
+    for key in data:
+        # older runs stored one friction per tool as '<tool>_friction'; from_dict maps those
+        if key not in known and not str(key).endswith("_friction"):
+            raise ConfigError(f"{where}: unknown key '{key}'{did_you_mean(str(key), known)}; "
+                              f"known keys: {', '.join(known)}")
+    try:
+        return SimConfig.from_dict(data)
+    except ConfigError as exc:
+        raise ConfigError(f"{where}: {exc}") from None
+    except TypeError as exc:  # e.g. a nested value of the wrong kind
+        raise ConfigError(f"{where}: {exc}") from None
 
 
 def _observed_points(obs: Any) -> Any:

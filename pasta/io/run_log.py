@@ -4,12 +4,19 @@ Every message is stamped with simulation time the caller passes (integer ns, e.g
 ``step_time_ns(env_step, dt)``); nothing in the file depends on the wall clock, so the same run
 gives byte-identical files. Chunks are zstd-compressed with chunk, data-section and summary CRCs.
 
+Crash safety: the file is written as ``FILE.partial`` next to ``FILE`` and renamed to ``FILE`` when it is
+closed, so an existing ``FILE`` is only replaced by a finished run. Closing records the run's status in
+the metadata record ``status`` (``complete``, or ``failed`` with the error, also logged as an error line
+on ``/log``); a killed run leaves ``FILE.partial``, readable with ``RunReader(path, recover=True)`` /
+``pasta replay FILE.partial --recover``.
+
 Shapes: ``points`` (N, 3) numeric, stored as float32; ``colors`` (N, 4) uint8 RGBA; entity lists are
 lists of (P_i, 3) arrays. See :mod:`pasta.io.schemas` for the byte layouts.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from pathlib import Path
@@ -43,6 +50,21 @@ INITIAL_STATE = "initial_state.npz"
 FINAL_STATE = "final_state.npz"
 SIM_CONFIG = "sim_config.json"
 RUN_METADATA = "run"
+RUN_STATUS = "status"  # metadata record written on close: {"status": "complete" | "failed", "error": ...}
+PARTIAL_SUFFIX = ".partial"
+
+
+def partial_path(path: str | os.PathLike[str]) -> Path:
+    """Where :class:`RunLogger` writes ``path`` until it is closed: ``path`` + ``.partial``."""
+    path = Path(path)
+    return path.with_name(path.name + PARTIAL_SUFFIX)
+
+
+def _error_text(error: BaseException | str) -> str:
+    if isinstance(error, BaseException):
+        text = str(error)
+        return f"{type(error).__name__}: {text}" if text else type(error).__name__
+    return str(error)
 
 
 def flatten_metadata(data: Mapping[str, Any], prefix: str = "") -> dict[str, str]:
@@ -65,12 +87,13 @@ def flatten_metadata(data: Mapping[str, Any], prefix: str = "") -> dict[str, str
 
 class RunLogger:
     """Writer of one run file. Use as a context manager; the file is finished on exit, also when
-    the block raises.
+    the block raises (then its status is ``failed`` and the exception is recorded).
 
     >>> with RunLogger("runs/r1.mcap", config_yaml=cfg_yaml, metadata={"seed": 3}) as log:
     ...     log.point_cloud("/dough", step_time_ns(0, dt), points)
 
-    ``path``: the file (parents are created, an existing file is replaced).
+    ``path``: the file (parents are created). It is written as ``path.partial`` (:attr:`partial_path`)
+    and renamed to ``path`` by :meth:`close`; an existing ``path`` is replaced only then.
     ``config_yaml``: resolved config text, stored as attachment ``config.yaml``.
     ``metadata``: run facts (seed, package and plugin versions ...), nested mappings are flattened
     with dotted keys and values turned into strings; stored as the metadata record ``"run"``.
@@ -87,8 +110,12 @@ class RunLogger:
         chunk_size: int = 1024 * 1024,
     ) -> None:
         self.path = Path(path)
+        if self.path.is_dir():  # found now, not at the rename after the whole run
+            raise IsADirectoryError(errno.EISDIR, "run log target is a directory", str(self.path))
+        self.partial_path = partial_path(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._stream = open(self.path, "wb")
+        self._stream = open(self.partial_path, "wb")
+        self._last_t = 0  # latest message time: where a failure is logged
         try:
             self._writer = Writer(
                 self._stream,
@@ -112,29 +139,49 @@ class RunLogger:
             self.add_metadata(RUN_METADATA, metadata)
         if config_yaml is not None:
             self.attach(CONFIG_ATTACHMENT, config_yaml.encode("utf-8"), "application/yaml")
+        self._stream.flush()  # header, metadata and config reach the disk before the run starts
 
     # ---------------------------------------------------------------- lifecycle
 
     def __enter__(self) -> "RunLogger":
         return self
 
-    def __exit__(self, *exc: Any) -> None:
-        self.close()
+    def __exit__(self, exc_type: Any, exc: BaseException | None, tb: Any) -> None:
+        self.close(error=exc)
 
     def flush(self) -> None:
         """Close the current chunk and flush it to the OS, bounding what a crash can lose."""
         self._check_open()
         self._writer.flush()
 
-    def close(self) -> None:
-        """Write the summary and footer and close the file (idempotent)."""
+    def close(self, error: BaseException | str | None = None) -> None:
+        """Record the run's status, write the summary and footer, and rename the file to :attr:`path`
+        (idempotent). ``error``: the exception (or text) that ended the run; the status is then ``failed``,
+        the error is stored in the ``status`` record and logged as an error line on ``/log``."""
         if self._closed:
             return
         self._closed = True
         try:
+            status = {"status": "complete"}
+            if error is not None:
+                text = _error_text(error)
+                status = {"status": "failed", "error": text}
+                try:
+                    line = S.encode_log(self._last_t, "error", f"run failed: {text}", "pasta")
+                    self._write_proto(LOG, self._last_t, line)
+                except ValueError:  # /log carries another type in this run: the status record still says it
+                    pass
+            self._writer.add_metadata(RUN_STATUS, status)
             self._writer.finish()
+            self._stream.flush()
+            os.fsync(self._stream.fileno())  # the data is on disk before the name says it is complete
         finally:
             self._stream.close()
+        os.replace(self.partial_path, self.path)
+
+    def fail(self, error: BaseException | str) -> None:
+        """Close the file recording that the run failed with ``error`` (see :meth:`close`)."""
+        self.close(error=error)
 
     @property
     def closed(self) -> bool:
@@ -170,6 +217,7 @@ class RunLogger:
         return cid
 
     def _write(self, cid: int, t_ns: int, data: bytes) -> None:
+        self._last_t = max(self._last_t, t_ns)
         seq = self._sequence.get(cid, 0)
         self._sequence[cid] = seq + 1
         self._writer.add_message(channel_id=cid, log_time=t_ns, data=data, publish_time=t_ns, sequence=seq)
@@ -294,6 +342,8 @@ class RunLogger:
     def add_metadata(self, name: str, data: Mapping[str, Any]) -> None:
         """Write an MCAP metadata record ``name`` (flattened to ``dict[str, str]``)."""
         self._check_open()
+        if name == RUN_STATUS:
+            raise ValueError(f"metadata record {RUN_STATUS!r} is written by close(); use another name")
         if name in self._metadata_names:
             raise ValueError(f"metadata record {name!r} already written to {self.path}")
         self._metadata_names.add(name)

@@ -11,6 +11,10 @@ misleading errors, so they are done here):
 
 With ``recover=True`` the file is streamed from the start and everything up to the first broken
 or missing record is kept (in memory): all messages of the complete chunks before a cut.
+
+:attr:`RunReader.status` tells a finished run (``complete``), one that raised (``failed``, with
+:attr:`RunReader.error`) and one whose writer was killed (``truncated``, read with ``recover=True``; the
+file is then usually still named ``FILE.partial``) apart.
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
 from pasta.io import schemas as S
 from pasta.io.errors import McapFormatError, McapTruncatedError
-from pasta.io.run_log import CONFIG_ATTACHMENT, RUN_METADATA
+from pasta.io.run_log import CONFIG_ATTACHMENT, RUN_METADATA, RUN_STATUS, partial_path
 
 MAGIC = b"\x89MCAP0\r\n"
 _FOOTER_LEN = 1 + 8 + 8 + 8 + 4  # opcode, length, summary_start, summary_offset_start, summary_crc
@@ -86,7 +90,12 @@ class RunReader:
         try:
             self._file = open(self.path, "rb")
         except OSError as e:
-            raise McapFormatError(f"cannot open run file {self.path}: {e.strerror or e}") from e
+            hint = ""
+            if not self.path.exists() and partial_path(self.path).exists():
+                partial = partial_path(self.path)
+                hint = (f"; {partial} exists: the run was killed or is still running. Read what it wrote "
+                        f"with `pasta replay {partial} --recover`")
+            raise McapFormatError(f"cannot open run file {self.path}: {e.strerror or e}{hint}") from e
         try:
             self._size = os.fstat(self._file.fileno()).st_size
             self._check_start()
@@ -220,6 +229,23 @@ class RunReader:
 
     def __exit__(self, *exc: Any) -> None:
         self.close()
+
+    # ---------------------------------------------------------------- run status
+
+    @property
+    def status(self) -> str:
+        """How the run ended: ``"complete"``; ``"failed"`` (it raised, see :attr:`error`); ``"truncated"``
+        (the writer never finished, e.g. the process was killed; only readable with ``recover=True``);
+        ``"unknown"`` (a finished file without a status record: older pasta or another writer)."""
+        if not self.complete:
+            return "truncated"
+        value = self.metadata(RUN_STATUS).get("status")
+        return value if value in ("complete", "failed") else "unknown"
+
+    @property
+    def error(self) -> str | None:
+        """The error that ended a ``failed`` run (``"ExceptionType: message"``), else None."""
+        return self.metadata(RUN_STATUS).get("error") if self.status == "failed" else None
 
     # ---------------------------------------------------------------- catalogue
 

@@ -42,6 +42,24 @@ class LatentPlannerConfig(PluginConfig):
     clearance_weight: float = 0.05
     keep_per_sequence: int = 4  # also: candidates per sequence reported in plan.info (paper top-4)
 
+    def __post_init__(self) -> None:
+        """Range checks, run whenever the section is resolved (every command), naming ``planner.<key>``."""
+        from pasta.config.validate import check_choice, check_int, check_number
+
+        check_int(self.num_samples, "planner.num_samples", low=1)
+        check_int(self.iterations, "planner.iterations", low=0)
+        check_int(self.keep_per_sequence, "planner.keep_per_sequence", low=1)
+        # a NaN or zero step size gives NaN latents or no search at all (issue 21: lr=nan planned NaN sub-goals)
+        check_number(self.lr, "planner.lr", low=0.0, low_open=True)
+        check_number(self.adam_eps, "planner.adam_eps", low=0.0, low_open=True)
+        # the floor is a feasibility, and the reported score multiplies floored feasibilities: outside [0, 1]
+        # it is no longer a probability (feasibility_floor=2 reported a "score" of 3.4)
+        check_number(self.feasibility_floor, "planner.feasibility_floor", low=0.0, high=1.0)
+        for key in ("cost_weight", "aux_weight", "clearance_weight"):
+            check_number(getattr(self, key), f"planner.{key}", low=0.0)
+        check_choice(self.objective, "planner.objective", ("log", "product"))
+        check_choice(self.matching, "planner.matching", ("auto", "frozen", "recompute"))
+
 
 @dataclass
 class HalvingConfig(LatentPlannerConfig):
@@ -53,3 +71,11 @@ class HalvingConfig(LatentPlannerConfig):
     successive_halving: bool = True
     halving_points: list[float] = field(default_factory=lambda: [0.1, 0.2, 0.35, 0.5])
     halving_scope: str = "sequence"  # "sequence": halve every sequence; "global": rank all samples together
+
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_choice, check_number
+
+        super().__post_init__()
+        for i, point in enumerate(self.halving_points):
+            check_number(point, f"planner.halving_points[{i}]", low=0.0, high=1.0, low_open=True, high_open=True)
+        check_choice(self.halving_scope, "planner.halving_scope", ("sequence", "global"))

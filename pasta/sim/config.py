@@ -29,7 +29,8 @@ class SimConfig:
     """Everything the simulator needs. Units: the workspace is the unit cube, y is up, time in seconds.
 
     Structural fields (changing them means new Taichi fields, hence new kernels): ``n_grid``,
-    ``max_particles``, ``arch``, ``cpu_threads``. Everything in :data:`RUNTIME_PARAMS` is a runtime
+    ``max_particles``, ``arch``, ``cpu_threads``, ``fast_math`` (``arch`` and ``fast_math``: one value per
+    process). Everything in :data:`RUNTIME_PARAMS` is a runtime
     scalar and can also be changed later with ``Simulator.set_params``; ``substeps``,
     ``n_particles``, ``obs_points`` and ``seed`` are plain Python values.
 
@@ -48,6 +49,9 @@ class SimConfig:
     max_particles: int = 10000
     arch: str = "cpu"  # "cpu" | "cuda" | "gpu" | "vulkan" | "metal"
     cpu_threads: int = 2  # 0 = let Taichi decide
+    # Taichi's fast_math (one value per process). Off keeps IEEE float semantics, so instances reproduce across
+    # machines; on is ~23% faster and was used for the results before issue 21 (docs/simulator.md, Reproducibility)
+    fast_math: bool = False
     # --- time ----------------------------------------------------------------------------------
     dt: float = 1e-4
     substeps: int = 20
@@ -94,6 +98,8 @@ class SimConfig:
             raise bad("n_particles", f"must be in [1, max_particles={self.max_particles}]")
         if self.obs_points < 1:
             raise bad("obs_points", "must be >= 1")
+        if not isinstance(self.fast_math, bool):
+            raise bad("fast_math", "must be true or false")
         if self.arch not in ("cpu", "cuda", "gpu", "vulkan", "metal"):
             raise bad("arch", "must be one of cpu, cuda, gpu, vulkan, metal")
         if self.cpu_threads < 0:
@@ -109,8 +115,10 @@ class SimConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SimConfig:
         """Build from a plain dict (a run's ``sim_config.json``), also from older versions: their
-        ``<tool>_friction`` keys (knife_friction, ...) become ``tool_friction`` entries."""
+        ``<tool>_friction`` keys (knife_friction, ...) become ``tool_friction`` entries, and a missing
+        ``fast_math`` means on (what those runs used)."""
         d = dict(d)
+        d.setdefault("fast_math", True)  # runs logged before the field existed ran with Taichi's default, on
         known = {f.name for f in fields(cls)}
         tf = dict(d.pop("tool_friction", None) or {})
         for k in list(d):

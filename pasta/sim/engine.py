@@ -54,19 +54,37 @@ RHO = 1.0
 
 _TI_STATE: dict = {}
 
+#: Taichi ``fast_math`` when the caller does not say (``SimConfig.fast_math`` does). Off: LLVM then keeps
+#: IEEE semantics (no FMA contraction or reassociation chosen per host CPU, no "no NaN" assumption that
+#: could fold away the divergence check), so the same seed gives the same task instance on other x86-64
+#: machines; it costs about 23% simulator time (docs/simulator.md, "Reproducibility").
+FAST_MATH = False
+
 
 def cache_dir() -> str:
     """Offline-cache folder for compiled kernels: $PASTA_TAICHI_CACHE or ~/.cache/pasta/taichi."""
     return os.environ.get("PASTA_TAICHI_CACHE") or str(Path.home() / ".cache" / "pasta" / "taichi")
 
 
-def ensure_taichi(arch: str = "cpu", cpu_threads: int = 2) -> None:
-    """Initialise Taichi once per process; later calls with the same arch reuse the runtime."""
+def ensure_taichi(arch: str = "cpu", cpu_threads: int = 2, fast_math: bool | None = None) -> None:
+    """Initialise Taichi once per process; later calls with the same settings reuse the runtime.
+
+    ``fast_math``: let LLVM reassociate and contract floating-point operations. It is a compile option of
+    the whole runtime, so one process has one value; ``None``: the running runtime's value, or
+    :data:`FAST_MATH` when Taichi is not running yet. See docs/simulator.md, "Reproducibility".
+    """
+    if fast_math is None:
+        fast_math = _TI_STATE["fast_math"] if _TI_STATE else FAST_MATH
     if _TI_STATE:
         if _TI_STATE["arch"] != arch:
             raise ConfigError(
                 f"sim.arch={arch!r}: Taichi is already running with arch={_TI_STATE['arch']!r} in this "
                 "process; one Taichi runtime per process (use the same arch for every Simulator)"
+            )
+        if _TI_STATE["fast_math"] != bool(fast_math):
+            raise ConfigError(
+                f"sim.fast_math={bool(fast_math)}: Taichi is already running with fast_math={_TI_STATE['fast_math']} "
+                "in this process; one Taichi runtime per process (use the same value for every Simulator)"
             )
         return
     archs = {"cpu": ti.cpu, "cuda": ti.cuda, "gpu": ti.gpu, "vulkan": ti.vulkan, "metal": ti.metal}
@@ -74,6 +92,7 @@ def ensure_taichi(arch: str = "cpu", cpu_threads: int = 2) -> None:
         arch=archs[arch],
         default_fp=ti.f32,
         default_ip=ti.i32,
+        fast_math=bool(fast_math),
         offline_cache=True,
         offline_cache_file_path=cache_dir(),
         random_seed=0,
@@ -83,7 +102,18 @@ def ensure_taichi(arch: str = "cpu", cpu_threads: int = 2) -> None:
         kwargs["cpu_max_num_threads"] = cpu_threads
     os.makedirs(cache_dir(), exist_ok=True)
     ti.init(**kwargs)
-    _TI_STATE["arch"] = arch
+    _TI_STATE.update(arch=arch, fast_math=bool(fast_math))
+
+
+def taichi_settings() -> dict:
+    """The running Taichi runtime's arch and compile options (``{}`` before :func:`ensure_taichi`)."""
+    if not _TI_STATE:
+        return {}
+    cfg = ti.lang.impl.current_cfg()
+    return {"arch": _TI_STATE["arch"], "backend": str(cfg.arch).rpartition(".")[2], "fast_math": bool(cfg.fast_math),
+            "cpu_max_num_threads": int(cfg.cpu_max_num_threads), "default_fp": str(cfg.default_fp),
+            "opt_level": int(cfg.opt_level), "advanced_optimization": bool(cfg.advanced_optimization),
+            "debug": bool(cfg.debug), "random_seed": int(cfg.random_seed)}
 
 
 class Engine:

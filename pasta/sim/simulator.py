@@ -89,7 +89,7 @@ _ENGINES: dict = {}
 def _get_engine(cfg: SimConfig):
     from .engine import Engine, ensure_taichi
 
-    ensure_taichi(cfg.arch, cfg.cpu_threads)
+    ensure_taichi(cfg.arch, cfg.cpu_threads, cfg.fast_math)
     scatter = "serial" if cfg.arch == "cpu" else "atomic"
     key = (cfg.n_grid, cfg.max_particles, scatter)
     if key not in _ENGINES:

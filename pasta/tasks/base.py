@@ -245,17 +245,22 @@ class Task(TaskInterface):
         """Hash of everything that changes a generated instance besides the seed."""
         from pasta.plugins import get_plugins
 
-        skills = {}
+        plugins = get_plugins()
+        skills, tools = {}, {}
         for name in sorted(set(self.skeleton)):
-            info = get_plugins().skills.info(name)
+            info = plugins.skills.info(name)
             skill = self.skill(name)
             cfg = asdict(skill.config) if skill.config is not None else {}
             # settings only the heuristic controllers read do not change generated instances
             cfg = {k: v for k, v in cfg.items() if k not in getattr(skill, "heuristic_fields", ())}
             skills[name] = {"version": info.version, "config": cfg}
+            # the geometry, actions and friction of the tools the chain uses (its own and the static ones
+            # its scenes stand up) shape the goals too
+            for tool in (skill.tool, *skill.demo_tools()):
+                tools[tool] = repr(plugins.tools.info(tool).spec)
         config = {k: v for k, v in asdict(self.config).items() if k not in SCORING_FIELDS}
-        blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config),
-                           "skills": skills, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)
+        blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config), "skills": skills,
+                           "tools": tools, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)
         return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
     def rng(self, seed: int, attempt: int = 0) -> np.random.Generator:

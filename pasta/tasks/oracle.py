@@ -6,7 +6,8 @@ the observed attended piece and the sub-goal (the pieces the step produced in th
 measures whether the tasks are solvable by point-cloud controllers and calibrates the thresholds.
 
 The attended piece in the current (executed) scene is the DBSCAN cluster sharing the most observed
-particles with the recorded input piece of the step (pieces are tracked by particle identity).
+particles with the recorded input piece of the step (the ``n_in`` such clusters for a skill that consumes
+several pieces; pieces are tracked by particle identity).
 """
 
 from __future__ import annotations
@@ -35,11 +36,13 @@ class OracleResult:
     wall_s: float = 0.0
 
 
-def attended_piece(dough: np.ndarray, recorded: np.ndarray, *, min_points: int = 10) -> np.ndarray:
-    """Indices of the cluster of ``dough (P, 3)`` that shares most points with ``recorded (K,)``."""
+def attended_piece(dough: np.ndarray, recorded: np.ndarray, *, min_points: int = 10, n: int = 1) -> np.ndarray:
+    """Indices of the ``n`` clusters of ``dough (P, 3)`` that share most points with ``recorded (K,)``
+    (a skill consuming ``n`` pieces attends that many)."""
     labels = decompose_labels(dough, min_points=min_points)
     votes = np.bincount(labels[np.asarray(recorded, np.int64)], minlength=int(labels.max()) + 1)
-    return np.flatnonzero(labels == int(np.argmax(votes)))
+    chosen = np.argsort(-votes, kind="stable")[:max(1, n)]
+    return np.flatnonzero(np.isin(labels, chosen[votes[chosen] > 0]))
 
 
 def run_oracle(task: Task, instance: TaskInstance, sim: Any = None) -> OracleResult:
@@ -51,7 +54,7 @@ def run_oracle(task: Task, instance: TaskInstance, sim: Any = None) -> OracleRes
     for h, step in enumerate(instance.steps):
         skill = task.skill(step.skill)
         dough = sim.observe().dough
-        piece = attended_piece(dough, step.inputs)
+        piece = attended_piece(dough, step.inputs, n=skill.n_in)
         runs.append(run_skill(sim, skill, skill.controller(), piece, instance.step_goal(h),
                               idle_steps=task.config.idle_steps))
     score = task.score(sim.observe().dough, instance)

@@ -47,3 +47,50 @@ def test_plan_json_round_trip_and_summary():
     assert "split" in plan.summary()
     with pytest.raises(InputError, match="format_version"):
         Plan.from_json(text.replace('"format_version": 1', '"format_version": 99'))
+
+
+def _replace(plan, **kw):
+    import dataclasses
+
+    return dataclasses.replace(plan, **kw)
+
+
+def test_plans_with_nan_or_out_of_range_values_are_refused():
+    """Issue 21: a NaN score or latent, a score outside [0, 1] never reaches a plan file."""
+    import dataclasses
+
+    plan = ReferencePlanner().plan(analytic_problem())
+    assert plan.problems() == [] and plan.check() is plan
+    nan = float("nan")
+    bad_step = dataclasses.replace(plan.steps[1], feasibility=1.7,
+                                   subgoal=tuple((nan,) * len(r) for r in plan.steps[1].subgoal))
+    cases = [
+        (_replace(plan, score=nan), "score is nan"),
+        (_replace(plan, score=3.4), r"score 3.4 is outside \[0, 1\]"),
+        (_replace(plan, final_cost=float("inf")), "final_cost is inf"),
+        (_replace(plan, goal=((nan,) * 5,) + plan.goal[1:]), "goal has 1 of 2 latents with NaN"),
+        (_replace(plan, steps=(plan.steps[0], bad_step) + plan.steps[2:]), r"step 2 \(move\) feasibility 1.7 .*"
+                                                                         r"step 2 \(move\) subgoal has 1 of 1"),
+    ]
+    for bad, message in cases:
+        assert bad.problems()
+        with pytest.raises(InputError, match=message):
+            bad.check()
+        with pytest.raises(InputError, match="is not valid"):
+            bad.to_json()
+    with pytest.raises(InputError, match="strict JSON"):
+        _replace(plan, info={"x": nan}).to_json()
+
+
+def test_plan_files_are_strict_json():
+    plan = ReferencePlanner().plan(analytic_problem())
+    text = plan.to_json()
+    assert "NaN" not in text and "Infinity" not in text
+    with pytest.raises(InputError, match="not strict JSON: it contains NaN"):
+        Plan.from_json(text.replace(f'"score": {plan.score!r}', '"score": NaN'))
+    with pytest.raises(InputError, match="score 2 is outside"):
+        Plan.from_json(text.replace(f'"score": {plan.score!r}', '"score": 2.0'))
+    with pytest.raises(InputError, match="not valid JSON"):
+        Plan.from_json(text[:-5])
+    with pytest.raises(InputError, match="lacks the field 'steps'"):
+        Plan.from_json(text.replace('"steps"', '"stepz"'))

@@ -21,19 +21,32 @@ def models(tmp_path, *modules):
     return tmp_path
 
 
+BUILTIN = ("cut", "push", "roll")  # the built-in skills that ship trained weights
+
+
+def others(*names):
+    """The registered skills other than ``names``, in registry order (other installed plugins included)."""
+    return [name for name in get_plugins().skills.names() if name not in names]
+
+
 def test_shipped_weights_cover_the_builtin_skills():
     choice = choose_skills(None, ROOT)
-    assert choice.names == get_plugins().skills.names() and not choice.left_out and choice.warning() is None
+    assert set(BUILTIN) <= set(choice.names) and not set(BUILTIN) & set(choice.left_out)
+    # every registered skill is either chosen or left out (skills shipped without weights), in registry order
+    assert choice.names == others(*choice.left_out) and set(choice.left_out) == set(others(*choice.names))
+    assert (choice.warning() is None) == (not choice.left_out)
 
 
 def test_skills_without_weights_are_left_out_with_one_warning_line(tmp_path):
     root = models(tmp_path, "feasibility/cut", "feasibility/push")
     choice = choose_skills(None, root)
-    assert choice.names == ["cut", "push"] and list(choice.left_out) == ["roll"]
+    left = others("cut", "push")  # roll, and any other registered skill
+    assert choice.names == ["cut", "push"] and list(choice.left_out) == left and "roll" in left
     line = choice.warning()
-    assert "\n" not in line and line.startswith(f"warning: skills without trained weights under {root} are left out: roll")
+    assert "\n" not in line
+    assert line.startswith(f"warning: skills without trained weights under {root} are left out: {', '.join(left)}")
     assert f"`pasta train feasibility data=DIR out={root} skill=roll`" in line
-    assert f"`pasta pipeline skills=roll out={root}`" in line
+    assert f"`pasta pipeline skills={','.join(left)} out={root}`" in line
 
 
 def test_naming_a_skill_without_weights_is_an_error(tmp_path):
@@ -44,7 +57,10 @@ def test_naming_a_skill_without_weights_is_an_error(tmp_path):
 
 
 def test_unknown_or_repeated_names_list_the_known_skills():
-    with pytest.raises(PluginNotFoundError, match="unknown skill 'rol'; did you mean 'roll'.*known skills: cut, push, roll"):
+    known = get_plugins().skills.names()
+    assert set(BUILTIN) <= set(known)
+    with pytest.raises(PluginNotFoundError,
+                       match=f"unknown skill 'rol'; did you mean 'roll'.*known skills: {', '.join(known)}$"):
         choose_skills("cut,rol", ROOT)
     with pytest.raises(ConfigError, match="names cut more than once"):
         parse_skill_names("cut,push,cut")
@@ -54,7 +70,8 @@ def test_unknown_or_repeated_names_list_the_known_skills():
 def test_learned_controllers_need_policies(tmp_path):
     root = models(tmp_path, "feasibility/cut", "feasibility/push", "feasibility/roll", "policy/cut")
     choice = choose_skills(None, root, policy=True)
-    assert choice.names == ["cut"] and set(choice.left_out) == {"push", "roll"}
+    assert choice.names == ["cut"] and set(choice.left_out) == set(others("cut"))
+    assert {"push", "roll"} <= set(choice.left_out)
     assert "policy (" in choice.warning() and "pasta train policy" in choice.warning()
 
 
@@ -66,7 +83,8 @@ def test_flat_method_looks_under_flat(tmp_path):
 def test_skills_computing_their_own_feasibility_need_no_network(tmp_path):
     plugins = discover(extra={"analytic": AnalyticPlugin()})
     choice = choose_skills(None, tmp_path, plugins=plugins)
-    assert choice.names == ["flatten", "move", "split"] and set(choice.left_out) == {"cut", "push", "roll"}
+    left = {name for name in plugins.skills.names() if name not in ("flatten", "move", "split")}
+    assert choice.names == ["flatten", "move", "split"] and set(choice.left_out) == left and set(BUILTIN) <= left
 
 
 def test_no_skill_with_weights_is_an_error(tmp_path):

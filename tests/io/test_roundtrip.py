@@ -194,7 +194,7 @@ def test_metadata_is_flattened_to_strings(tmp_path):
     assert r.metadata() == {"seed": "3", "plugins.cut": "0.1", "plugins.roll": "0.2"}
     assert r.metadata("extra") == {"k": "v"}
     assert r.metadata("absent") == {}
-    assert sorted(r.metadata_names()) == ["extra", "run"]
+    assert sorted(r.metadata_names()) == ["extra", "run", "status"]
 
 
 def test_time_order_and_empty_entities(tmp_path):

@@ -59,10 +59,13 @@ def test_unfinished_writer_is_truncated(tmp_path):
         log.point_cloud("/dough", i, np.full((100, 3), i, np.float32))
     log.flush()  # like a process killed after flushing: no summary, no footer
     log._stream.flush()
+    assert log.partial_path == tmp_path / "killed.mcap.partial" and not p.exists()
     with pytest.raises(McapTruncatedError):
-        RunReader(p)
-    assert len(list(RunReader(p, recover=True).messages("/dough"))) == 50
+        RunReader(log.partial_path)
+    r = RunReader(log.partial_path, recover=True)
+    assert len(list(r.messages("/dough"))) == 50 and r.status == "truncated"
     log.close()
+    assert not log.partial_path.exists() and RunReader(p).status == "complete"
 
 
 def _parse(argv):

@@ -97,7 +97,9 @@ def test_skill_choice_is_the_same_rule_as_run(tmp_path, analytic_plugins, monkey
     args = [a for a in ARGS if not a.startswith("skills=")]
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'o'}", *args]) == 0
     err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning: skills")]
-    assert len(err) == 1 and "left out: cut, push, roll" in err[0] and "pasta train feasibility" in err[0]
+    assert len(err) == 1 and "pasta train feasibility" in err[0]
+    left_out = set(err[0].split("left out: ")[1].split(" (")[0].split(", "))
+    assert {"cut", "push", "roll"} <= left_out and not left_out & {"split", "move", "flatten"}  # other built-ins may come
     assert Plan.from_json((tmp_path / "o" / "plan.json").read_text()).skills == ("split", "move", "flatten")
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skills=split,move,cut"]) == 2
     assert "skill 'cut' has no feasibility network" in capsys.readouterr().err
@@ -105,3 +107,112 @@ def test_skill_choice_is_the_same_rule_as_run(tmp_path, analytic_plugins, monkey
     assert "unknown skill 'mvoe'; did you mean 'move'?" in capsys.readouterr().err
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skeleton=cut,move,flatten"]) == 2
     assert "skeleton= needs the skills cut, move, flatten; left out: 'cut': feasibility network" in capsys.readouterr().err
+
+
+# -- hardening (issue 21) -------------------------------------------------------------------------------
+
+
+def test_output_path_is_checked_before_anything_is_computed(tmp_path, analytic_plugins, monkeypatch, capsys):
+    import pasta.config
+
+    obs, goal = _clouds(tmp_path)
+    (tmp_path / "taken").write_text("not a directory")
+    monkeypatch.setattr(pasta.config, "load_config", lambda *a, **k: pytest.fail("computed before out= was checked"))
+    for out, message in [(tmp_path / "taken", "exists and is not a directory"),
+                         (tmp_path / "taken" / "sub", "is a file, so the path cannot be created")]:
+        assert main(["plan", f"obs={tmp_path / 'missing.npy'}", f"goal={goal}", f"out={out}", *ARGS]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith("pasta plan: error: out=") and message in err
+    assert (tmp_path / "taken").read_text() == "not a directory"
+
+
+@pytest.mark.parametrize("item, message", [
+    ("threads=abc", "threads=abc: must be an integer >= 0"),
+    ("horizon=11", "horizon=11: must be an integer in [1, 10]"),
+    ("num_points=8", "num_points=8: must be an integer in [16, 10000]"), ("min_points=0", "min_points=0: must be"),
+    ("max_points=10", "max_points=10: must be >= min_points (20)"),
+])
+def test_command_keys_are_range_checked(tmp_path, analytic_plugins, capsys, item, message):
+    obs, goal = _clouds(tmp_path)
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'o'}", *ARGS, item]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_threads_pin_torch(tmp_path, analytic_plugins):
+    obs, goal = _clouds(tmp_path)
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'o'}", *ARGS, "planner.iterations=3"]) == 0
+        assert torch.get_num_threads() == 1  # the default, as in `pasta run`
+    finally:
+        torch.set_num_threads(before)
+
+
+def test_plan_runs_on_the_cpu_only():
+    from omegaconf import OmegaConf
+
+    plan_cmd.check_cpu_only(OmegaConf.create({"device": "cpu", "encoder": {"device": "cpu"}, "planner": {}}))
+    for cfg, key in [({"device": "cuda"}, "device=cuda"), ({"device": "cpu", "cost_model": {"device": "cuda:0"}},
+                                                           "cost_model.device=cuda:0")]:
+        with pytest.raises(ConfigError, match=f"{key}: pasta plan runs on the CPU.*allowed: cpu"):
+            plan_cmd.check_cpu_only(OmegaConf.create(cfg))
+
+
+def test_clouds_outside_the_workspace_or_too_small_are_input_errors(tmp_path, analytic_plugins, capsys):
+    obs, goal = _clouds(tmp_path)
+    pts = np.load(obs)
+    np.save(tmp_path / "far.npy", pts + 100.0)
+    np.save(tmp_path / "few.npy", pts[:5])
+    for bad, message in [(tmp_path / "far.npy", "300 of 300 points lie outside the workspace, the unit cube [0, 1]^3"),
+                         (tmp_path / "few.npy", "obs cloud has 5 point(s); a cloud needs at least min_points=20")]:
+        assert main(["plan", f"obs={bad}", f"goal={goal}", f"out={tmp_path / 'o'}", *ARGS]) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
+
+
+def test_large_clouds_are_voxel_downsampled_with_a_note(tmp_path, analytic_plugins, capsys):
+    obs, goal = _clouds(tmp_path)
+    rng = np.random.default_rng(0)
+    pts = np.load(obs)
+    dense = np.clip(pts[rng.integers(0, len(pts), 40_000)] + rng.normal(0, 0.003, (40_000, 3)), 0, 1)
+    np.save(tmp_path / "dense.npy", dense.astype(np.float32))
+    out = tmp_path / "o"
+    assert main(["plan", f"obs={tmp_path / 'dense.npy'}", f"goal={goal}", f"out={out}", *ARGS, "max_points=3000"]) == 0
+    err = capsys.readouterr().err
+    assert "note: obs cloud has 40,000 points, more than max_points=3,000: voxel-downsampled" in err
+    assert "goal cloud" not in err  # 600 points: untouched
+    assert Plan.from_json((out / "plan.json").read_text()).skills == ("split", "move", "flatten")
+
+
+def test_refused_file_sizes_are_not_read(tmp_path, monkeypatch):
+    obs, _ = _clouds(tmp_path)
+    monkeypatch.setattr(plan_cmd, "MAX_FILE_POINTS", 100)
+    with pytest.raises(InputError, match="has 300 points, more than pasta plan reads"):
+        plan_cmd.load_cloud(obs, "obs")
+
+
+def test_nan_latents_and_plans_never_reach_a_file(tmp_path, analytic_plugins, monkeypatch, capsys):
+    import dataclasses
+
+    obs, goal = _clouds(tmp_path)
+    real_create = analytic_plugins.planners.create
+
+    class NanPlanner:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def plan(self, problem):
+            return dataclasses.replace(self.inner.plan(problem), score=float("nan"))
+
+    monkeypatch.setattr(analytic_plugins.planners, "create", lambda *a, **k: NanPlanner(real_create(*a, **k)))
+    out = tmp_path / "o"
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "planner.iterations=3"]) == 2
+    assert "plan by 'exhaustive' is not valid: score is nan" in capsys.readouterr().err
+    assert not out.exists()
+    monkeypatch.setattr(analytic_plugins.planners, "create", real_create)
+    monkeypatch.setattr(AnalyticEncoder, "encode", lambda self, pts: torch.full((len(pts), 5), float("nan")))
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS]) == 2
+    assert "encoded obs entities (encoder 'analytic') contains NaN" in capsys.readouterr().err
+    assert not out.exists()

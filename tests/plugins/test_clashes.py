@@ -70,19 +70,19 @@ def refusals(plugins, kind, name):
 def test_third_party_cannot_displace_a_builtin_skill(make_dist, fresh_plugins):
     """An entry point named like a built-in plugin, registering the built-in's skill name: the built-in is kept."""
     tool = get_plugins().skills.info("cut").spec.tool
-    make_dist("aaa-evil", "evil_cut", source("evil_cut", SKILL_ON, TOOL, cls="Cut", name="cut", tool="gripper"), entry="cut")
+    make_dist("aaa-evil", "evil_cut", source("evil_cut", SKILL_ON, TOOL, cls="Cut", name="cut", tool="claw"), entry="cut")
     with pytest.warns(PluginLoadWarning, match="skill 'cut' is already registered by the built-in"):
         plugins = fresh_plugins()
     info = plugins.skills.info("cut")
     assert (info.distribution, info.spec.tool, info.plugin) == (BUILTIN_DISTRIBUTION, tool, "cut")
     [failure] = refusals(plugins, "skill", "cut")
     assert failure.distribution == "aaa-evil" and BUILTIN_DISTRIBUTION in failure.error
-    assert "gripper" in plugins.tools  # the rest of that plugin loads: only the clashing name is refused
+    assert "claw" in plugins.tools  # the rest of that plugin loads: only the clashing name is refused
 
 
 def test_entry_point_names_are_per_distribution(make_dist, fresh_plugins):
     """A third-party entry point named ``cut`` that registers other names clashes with nothing."""
-    make_dist("pinch-pkg", "pinch_mod", source("pinch_mod", SKILL_ON, TOOL, cls="Pinch", name="pinch", tool="gripper"),
+    make_dist("pinch-pkg", "pinch_mod", source("pinch_mod", SKILL_ON, TOOL, cls="Pinch", name="pinch", tool="claw"),
               entry="cut")
     with warnings.catch_warnings():
         warnings.simplefilter("error", PluginLoadWarning)
@@ -105,19 +105,19 @@ def test_two_third_party_planners_with_one_name_load_neither(make_dist, fresh_pl
 
 
 def test_tool_clash_between_third_parties_refuses_the_tool_and_its_skills(make_dist, fresh_plugins):
-    make_dist("grip-one", "grip_one", source("grip_one", TOOL, SKILL_ON, cls="Pinch", name="pinch", tool="gripper"))
-    make_dist("grip-two", "grip_two", source("grip_two", TOOL, tool="gripper"), entry="grip")
+    make_dist("grip-one", "grip_one", source("grip_one", TOOL, SKILL_ON, cls="Pinch", name="pinch", tool="claw"))
+    make_dist("grip-two", "grip_two", source("grip_two", TOOL, tool="claw"), entry="grip")
     with pytest.warns(PluginLoadWarning):
         plugins = fresh_plugins()
-    assert "gripper" not in plugins.tools and "pinch" not in plugins.skills
-    assert {f.distribution for f in refusals(plugins, "tool", "gripper")} == {"grip-one", "grip-two"}
+    assert "claw" not in plugins.tools and "pinch" not in plugins.skills
+    assert {f.distribution for f in refusals(plugins, "tool", "claw")} == {"grip-one", "grip-two"}
     [skill] = refusals(plugins, "skill", "pinch")
-    assert "drives tool 'gripper', which no plugin registers; known tools:" in skill.error
+    assert "drives tool 'claw', which no plugin registers; known tools:" in skill.error
 
 
 def test_skill_with_unregistered_tool_fails_at_load_and_plugins_exits_1(make_dist, fresh_plugins, capsys):
-    make_dist("pinch-pkg", "pinch_notool", source("pinch_notool", SKILL_ON, cls="Pinch", name="pinch", tool="gripper"))
-    with pytest.warns(PluginLoadWarning, match="skill 'pinch' drives tool 'gripper', which no plugin registers"):
+    make_dist("pinch-pkg", "pinch_notool", source("pinch_notool", SKILL_ON, cls="Pinch", name="pinch", tool="claw"))
+    with pytest.warns(PluginLoadWarning, match="skill 'pinch' drives tool 'claw', which no plugin registers"):
         plugins = fresh_plugins()
     assert "pinch" not in plugins.skills
     [failure] = plugins.failures
@@ -125,7 +125,7 @@ def test_skill_with_unregistered_tool_fails_at_load_and_plugins_exits_1(make_dis
     assert f"known tools: {known}" in failure.error
     assert main(["plugins"]) == 1
     out = capsys.readouterr().out
-    assert "FAILED  skill 'pinch' of plugin 'pinch' from pinch-pkg: skill 'pinch' drives tool 'gripper'" in out
+    assert "FAILED  skill 'pinch' of plugin 'pinch' from pinch-pkg: skill 'pinch' drives tool 'claw'" in out
     assert main(["plugins", "--json"]) == 1
 
 
@@ -133,7 +133,7 @@ def test_registering_a_tool_needs_a_tool_spec(make_dist, fresh_plugins):
     bad = HEADER + '''
 @hookimpl
 def pasta_register_tools(register):
-    register(spec="gripper")
+    register(spec="claw")
 '''
     make_dist("bad-tool", "bad_tool", bad)
     with pytest.warns(PluginLoadWarning, match=r"register a tool with spec=ToolSpec\(...\) only"):

@@ -17,7 +17,7 @@ import torch
 from pasta.core import Planner, PluginConfig, Skill, SkillSpec, ToolSpec
 from pasta.plugins import hookimpl
 
-SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="gripper", description="squeeze two pieces into one")
+SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="claw", description="squeeze two pieces into one")
 
 
 class PinchSkill(Skill):
@@ -42,7 +42,7 @@ class BeamPlanner(Planner):
 
 @hookimpl
 def pasta_register_tools(register):
-    register(spec=ToolSpec("gripper", description="two-finger parallel gripper"))
+    register(spec=ToolSpec("claw", description="two-finger parallel claw"))
 
 
 @hookimpl
@@ -73,7 +73,7 @@ def test_third_party_skill_and_planner_appear_and_disappear(pinch_dist, monkeypa
 
     assert main(["plugins"]) == 0
     out = capsys.readouterr().out
-    assert "pinch" in out and "2->1 (gripper)" in out and "pinch-pkg" in out and "beam" in out
+    assert "pinch" in out and "2->1 (claw)" in out and "pinch-pkg" in out and "beam" in out
 
     monkeypatch.undo()
     sys.modules.pop("pinch_plugin", None)

@@ -31,6 +31,17 @@ def legacy():
     return mod
 
 
+@pytest.fixture(scope="module")
+def fresh():
+    """A simulator holding the legacy kernel's three tools in its order (the default simulator holds every
+    registered tool, spatula, gripper and board too); it shares the session simulator's compiled engine."""
+    from pasta.plugins import get_plugins
+
+    reg = get_plugins().tools
+    return Simulator(SimConfig(n_particles=3000, max_particles=10000),
+                     tools=[reg.info(n).spec for n in ("knife", "pusher", "roller")])
+
+
 def _pair(sim, legacy_mod, seed: int = 0):
     """The session simulator and a legacy driver, both loaded with the same dough."""
     cfg = SimConfig(n_particles=3000, max_particles=10000)

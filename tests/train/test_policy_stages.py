@@ -45,8 +45,17 @@ def _status(results):
 
 
 def test_default_plan_adds_reset_for_cut_and_select_for_cut_and_roll():
+    from pasta.plugins import get_plugins
+
     names = [u.name for u in plan(*parse_arguments(["stages=policy,reset,select"]))]
-    assert names == ["policy/cut", "policy/push", "policy/roll", "reset/cut", "select/cut", "select/roll"]
+    # a policy for every registered skill, then the reset and select units in stage order
+    later = [n for n in names if not n.startswith("policy/")]
+    assert names == [f"policy/{s}" for s in get_plugins().skills.names()] + later
+    stages = [n.split("/")[0] for n in later]
+    assert stages == ["reset"] * stages.count("reset") + ["select"] * stages.count("select")
+    # among the built-ins: reset for cut, select for cut and roll
+    builtin = [n for n in later if n.split("/")[1] in ("cut", "push", "roll")]
+    assert builtin == ["reset/cut", "select/cut", "select/roll"]
     units = {u.name: u for u in plan(PipelineConfig(stages="reset,select"), {})}
     reset, cut, roll = units["reset/cut"].configs[0], units["select/cut"].configs[0], units["select/roll"].configs[0]
     assert (reset.epochs, reset.start_step, reset.points) == (45, 0, 1000)  # the shipped regressor's settings

@@ -74,7 +74,11 @@ def test_bad_arguments_fail_before_any_work(three_demos, tmp_path, tiny):
         run_pipeline(_args(three_demos, out, tiny, "stages=vea"))
     with pytest.raises(ConfigError, match="unknown stage 'polcy'"):
         run_pipeline(_args(three_demos, out, tiny, "polcy.epochs=3"))
-    with pytest.raises(ConfigError, match="unknown skill 'cutt'.*known skills: cut, push, roll"):
+    from pasta.plugins import get_plugins
+
+    known = get_plugins().skills.names()  # every registered skill, the built-ins among them
+    assert {"cut", "push", "roll"} <= set(known)
+    with pytest.raises(ConfigError, match=f"unknown skill 'cutt'.*known skills: {', '.join(known)}$"):
         run_pipeline(_args(three_demos, out, tiny, "skills=cut,cutt"))
     with pytest.raises(ConfigError, match="did you mean 'num_demos'"):
         run_pipeline(_args(three_demos, out, tiny, "num_demo=3"))
@@ -125,9 +129,13 @@ def test_command_line(three_demos, tmp_path, tiny, capsys):
 def test_demos_stage_adds_the_variant_units_the_skills_declare():
     from pasta.train.pipeline import PipelineConfig, plan
 
+    from pasta.demos import demo_skills
+
     units = plan(PipelineConfig(stages="demos", num_demos=20), {})
     wide = {u.name: u for u in units}["demos/push-wide"]
-    assert [u.name for u in units] == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll"]
+    assert {f"demos/{s}" for s in demo_skills()} <= {u.name for u in units}  # one per skill, plus variants
+    builtin = [u.name for u in units if u.configs[0].skill in ("cut", "push", "roll")]
+    assert builtin == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll"]
     assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (170, "wide", "push")
     wide = {u.name: u for u in plan(PipelineConfig(stages="demos", num_demos=20, variant_demos=5), {})}["demos/push-wide"]
     assert wide.configs[0].num == 25

@@ -1,0 +1,1 @@
+"""The built-in gather skill: the gripper squeezes scattered dough lumps into one compact piece."""

@@ -1,0 +1,1 @@
+"""The built-in lift skill: the spatula lifts one dough piece onto the raised cutting board."""
