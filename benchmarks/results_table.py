@@ -57,9 +57,14 @@ def main(argv: list[str]) -> int:
             name += " (before clearance)"  # run before the clearance penalty and executor reorder existed
         elif s["method"] != "oracle" and "goal_mass" not in (s.get("execute_settings") or {}):
             name += " (before goal masses)"  # run before the executor's goal masses and anchor existed
+        if (s.get("provenance") or {}).get("taichi", {}).get("fast_math", True):
+            name += " †"  # run with Taichi fast_math on (every run before provenance was recorded)
         print(f"| {s['task']} | {name} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
               f"{s['improvement_std']:.3f} | {100 * s['success_rate']:.0f}% | {paper_txt} | {s['plan_s_mean']:.1f} | "
               f"{s['execute_s_mean']:.1f} |")
+    print()
+    print("† simulated with Taichi `fast_math` on (before issue 21 turned it off); instances and rollouts differ "
+          "from today's by float rounding.")
     print()
     print("Paper planning time per episode (GPU): " + ", ".join(f"{t} {v:,.0f} s" for t, v in PAPER_PLAN_S.items()))
     return 0

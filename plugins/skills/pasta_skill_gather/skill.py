@@ -2,8 +2,9 @@
 
 Geometry, in the horizontal (x, z) plane: the closing *axis* is the main axis of the lumps' points
 together. The approach pose turns the gripper so its fingers close along the axis, centred on the lumps'
-extent along it (and on their mean across it), fingers low and fully open (0.3). The motion is closing (``open`` < 0) until the gap between the fingers' inner faces reaches the
-target width; the fingers (0.14 wide) span the lumps' spread across the axis.
+extent along it (and on their mean across it), fingers low and fully open (0.3). The motion is closing
+(``open`` < 0) until the gap between the fingers' inner faces reaches the target width; the fingers
+(0.14 wide) span the lumps' spread across the axis.
 
 - expert: target gap ``width`` (parameter), drawn in [width_min, width_max];
 - heuristic controller: the goal piece's extent along the axis plus ``width_offset``.
