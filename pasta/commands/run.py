@@ -110,7 +110,8 @@ def run(args: argparse.Namespace) -> int:
         for s in out.result.steps:
             moved = f" (plan step {s.plan_step + 1})" if s.plan_step not in (-1, s.step) else ""
             print(f"  executed {s.step + 1}. {s.skill:<6}{moved} on observed pieces {list(s.attended)}: {s.env_steps} steps"
-                  f"{' (done)' if s.done else ''}, improvement {s.normalized_improvement:.3f}")
+                  f"{' (stopped: moving away from its goal)' if s.stopped else ' (done)' if s.done else ''}, "
+                  f"improvement {s.normalized_improvement:.3f}")
         if out.result.diverged:
             print(f"simulation diverged: {out.result.diverged}", file=sys.stderr)
     verdict = "success" if out.success else "failure"

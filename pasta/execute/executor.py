@@ -74,6 +74,11 @@ class ExecuteConfig:
             band, :attr:`~pasta.core.Skill.sweep_half_width`) through another observed piece and the
             later step does not depend on it (it consumes nothing the skipped steps produce); see
             :func:`sweep_risk`. The plan's latent states do not change, only the order.
+        regress_stop: which controllers a :class:`~pasta.tasks.executor.RegressionStop` watches:
+            ``"learned"`` (default: a learned policy's done head may stay low while it pushes past its
+            goal, docs/policies.md), ``"all"`` or ``"off"``. It ends a step once the attended piece,
+            having come at least halfway to the step's goal (Chamfer), moves away from it again by more
+            than ``regress_rise`` of its best distance for 3 env steps.
         emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
         log_every: log the dough cloud every this many env steps (actions are always logged).
     """
@@ -90,6 +95,8 @@ class ExecuteConfig:
     goal_anchor: bool = True
     retries: int = 1
     reorder: bool = True
+    regress_stop: str = "learned"
+    regress_rise: float = 0.5
     emd_points: int = 500
     emd_seed: int = 0
     log_every: int = 1
@@ -99,6 +106,18 @@ class ExecuteConfig:
             raise ConfigError(f"execute.controller must be 'learned' or 'heuristic', got {self.controller!r}")
         if self.max_steps < 0 or self.idle_steps < 0 or self.min_points < 1 or self.decode_points < 1:
             raise ConfigError("execute: min_points, decode_points must be >= 1, max_steps and idle_steps >= 0")
+        if self.regress_stop not in ("learned", "all", "off"):
+            raise ConfigError(f"execute.regress_stop must be 'learned', 'all' or 'off', got {self.regress_stop!r}")
+        if not self.regress_rise > 0:
+            raise ConfigError(f"execute.regress_rise must be a number > 0, got {self.regress_rise!r}")
+
+    def regression_stop(self) -> Any:
+        """The :class:`~pasta.tasks.executor.RegressionStop` that watches this config's controller, or ``None``."""
+        from pasta.tasks.executor import RegressionStop
+
+        if self.regress_stop == "all" or self.regress_stop == self.controller:
+            return RegressionStop(rise=float(self.regress_rise))
+        return None
 
 
 @dataclass
@@ -118,6 +137,7 @@ class StepInfo:
     normalized_improvement: float
     wall_s: float
     plan_step: int = -1  # index of the executed step in its plan (differs from ``step`` when reordered)
+    stopped: bool = False  # a RegressionStop ended (one of) its controller run(s)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -417,7 +437,7 @@ def execute_plan(
             skipped = float(chamfer(obs.dough, planned)) < cfg.skip_threshold
         if log:
             log.step_start(h, obs, labels, subgoal, step, attended)
-        steps_run, done = 0, False
+        steps_run, done, stopped = 0, False, False
         expected = int(labels.max()) + 1 - len(attended) + skill.spec.n_out  # pieces after a successful step
         attempts = 0
         while not skipped and diverged is None and attempts <= cfg.retries:
@@ -433,8 +453,8 @@ def execute_plan(
             start_step = sim.step_count
             try:
                 res = run_skill(sim, skill, controller, idx, goal_points, max_steps=cfg.max_steps or None,
-                                idle_steps=cfg.idle_steps, record=log is not None)
-                steps_run, done = steps_run + res.steps, res.done
+                                idle_steps=cfg.idle_steps, record=log is not None, stop=cfg.regression_stop())
+                steps_run, done, stopped = steps_run + res.steps, res.done, stopped or res.stopped
                 if log:
                     log.skill_run(start_step, skill, res, cfg.idle_steps)
             except Exception as exc:  # noqa: BLE001 - a diverged simulation ends the episode, scored as is
@@ -451,7 +471,7 @@ def execute_plan(
         final = obs.dough if diverged else sim.observe().dough
         e = emd(final, goal, n=cfg.emd_points, seed=cfg.emd_seed)
         info = StepInfo(h, step.skill, step.inputs, attended, int(labels.max()) + 1, len(idx), steps_run, done,
-                        skipped, e, normalized_improvement(emd0, e), time.perf_counter() - t0, h_plan)
+                        skipped, e, normalized_improvement(emd0, e), time.perf_counter() - t0, h_plan, stopped)
         infos.append(info)
         if log:
             log.step_end(info)

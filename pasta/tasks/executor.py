@@ -17,7 +17,7 @@ import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
 
-__all__ = ["SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
+__all__ = ["RegressionStop", "SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
 
 
 @dataclass
@@ -59,6 +59,7 @@ class SkillRun:
         approach: the tool pose the step started from.
         wall_s: wall-clock seconds of the whole step (approach to park).
         trajectory: the recorded steps, when asked for.
+        stopped: the step was ended by a :class:`RegressionStop` (``done`` is then ``True`` too).
     """
 
     skill: str
@@ -67,6 +68,59 @@ class SkillRun:
     approach: ToolPose
     wall_s: float
     trajectory: Trajectory | None = None
+    stopped: bool = False
+
+
+@dataclass
+class RegressionStop:
+    """Ends a controller's step once its piece has moved away from the sub-goal again.
+
+    A closed-loop check for controllers whose own stop is unreliable: a learned push whose done head
+    stays low pushes on past its goal, and pushing cannot pull the piece back. Every env step the
+    Chamfer distance ``d`` between the attended piece and the step's goal is measured (on at most
+    ``points`` fixed points of each); once the step has made real progress (its best distance is below
+    ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for ``patience``
+    steps in a row, the step ends as done. A step that has not made progress yet (a knife still
+    descending) is never stopped.
+
+    Use: ``start(piece (K, 3), goal (G, 3))`` before the first action, then ``update(piece) -> stop``
+    after every env step. One instance serves one step at a time (``start`` resets it).
+    """
+
+    rise: float = 0.5
+    patience: int = 3
+    progress: float = 0.5
+    points: int = 256
+
+    def __post_init__(self) -> None:
+        if not (self.rise > 0 and self.patience >= 1 and 0 < self.progress <= 1 and self.points >= 1):
+            raise InputError(f"RegressionStop needs rise > 0, patience >= 1, progress in (0, 1], points >= 1; got {self}")
+        self._goal: np.ndarray | None = None
+
+    def _subset(self, cloud: np.ndarray) -> np.ndarray:
+        cloud = np.asarray(cloud, np.float32)
+        if len(cloud) <= self.points:
+            return cloud
+        return cloud[np.linspace(0, len(cloud) - 1, self.points).astype(np.int64)]  # same particles every step
+
+    def _distance(self, piece: np.ndarray) -> float:
+        from pasta.core.metrics import chamfer
+
+        return float(chamfer(self._subset(piece), self._goal))
+
+    def start(self, piece: np.ndarray, goal: np.ndarray) -> None:
+        self._goal = self._subset(goal)
+        self.initial = self.best = self._distance(piece)
+        self.above = 0
+
+    def update(self, piece: np.ndarray) -> bool:
+        if self._goal is None:
+            raise InputError("RegressionStop.update before start")
+        d = self._distance(piece)
+        self.best = min(self.best, d)
+        progressed = self.best < self.progress * self.initial
+        self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
+        return self.above >= self.patience
 
 
 def piece_indices(piece: Any, num_points: int) -> np.ndarray:
@@ -108,6 +162,7 @@ def run_skill(
     approach: ToolPose | None = None,
     park: bool = True,
     record: bool = False,
+    stop: RegressionStop | None = None,
 ) -> SkillRun:
     """Run one skill step in ``sim`` and return what happened.
 
@@ -124,6 +179,8 @@ def run_skill(
             ``skill.approach_pose(piece, goal, scene=...)``).
         park: teleport the tool to ``skill.park_pose()`` at the end.
         record: keep the observations and actions (:class:`Trajectory`).
+        stop: end the step early once the piece moves away from ``goal_points`` again
+            (:class:`RegressionStop`; needs a goal).
 
     The loop: the controller sees the observation and returns ``(action, done)``; a done with an
     all-zero action ends the step without stepping, a done with a non-zero action is applied and then
@@ -148,7 +205,11 @@ def run_skill(
     traj = Trajectory() if record else None
     view = skill_observation(obs, tool, idx, goal_points)
     controller.reset(view)
-    steps, done = 0, False
+    steps, done, stopped = 0, False, False
+    if stop is not None and goal_points is not None:
+        stop.start(view.piece, view.goal)
+    else:
+        stop = None
     while steps < max_steps:
         action, done = controller.act(view)
         action = np.clip(np.asarray(action, np.float32).reshape(-1), -1.0, 1.0)
@@ -163,6 +224,9 @@ def run_skill(
         view = skill_observation(obs, tool, idx, goal_points)
         if done:
             break
+        if stop is not None and stop.update(view.piece):
+            done = stopped = True
+            break
     if traj is not None:
         traj.add_obs(obs, tool)
     for _ in range(max(0, idle_steps)):
@@ -170,4 +234,4 @@ def run_skill(
     if park:
         pose = skill.park_pose()
         sim.set_tool_pose(tool, pose.position, yaw=pose.yaw)
-    return SkillRun(skill.name, steps, bool(done), approach, time.perf_counter() - t0, traj)
+    return SkillRun(skill.name, steps, bool(done), approach, time.perf_counter() - t0, traj, stopped)

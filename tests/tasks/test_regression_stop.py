@@ -1,0 +1,105 @@
+"""RegressionStop: a step ends once its piece moves away from the sub-goal again (no simulator needed)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from pasta.core import Controller, InputError, SkillObservation, ToolPose
+from pasta.core.errors import ConfigError
+from pasta.execute.executor import ExecuteConfig
+from pasta.tasks.executor import RegressionStop, run_skill
+
+
+class _PushSim:
+    """Stand-in simulator: a tool that moves the whole dough by ``0.01 * action[0]`` along x per env step."""
+
+    def __init__(self) -> None:
+        rng = np.random.default_rng(0)
+        self.dough = (rng.random((300, 3)) * [0.1, 0.05, 0.08] + [0.5, 0.0, 0.45]).astype(np.float32)
+        self.pose = np.zeros(3)
+
+    def observe(self):
+        p = np.r_[self.pose, 1, 0, 0, 0].astype(np.float32)
+        return SimpleNamespace(dough=self.dough, tool_poses={"paddle": p},
+                               tool_points={"paddle": np.tile(self.pose, (4, 1)).astype(np.float32)})
+
+    def set_tool_pose(self, name, position, yaw=0.0):
+        self.pose = np.asarray(position, float)
+
+    def step(self, actions=None):
+        if actions:
+            self.dough = self.dough + np.float32([0.01 * float(actions["paddle"][0]), 0.0, 0.0])
+
+
+class _AlwaysLeft(Controller):
+    """Pushes left at full speed and never reports done (a done head that stays low)."""
+
+    def act(self, obs: SkillObservation):
+        return np.array([-1.0]), False
+
+
+_SKILL = SimpleNamespace(name="shove", tool="paddle", max_steps=40,
+                         approach_pose=lambda piece, goal, scene=None: ToolPose((0.7, 0.05, 0.5)),
+                         park_pose=lambda: ToolPose((0.9, 0.3, 0.9)))
+
+
+def _goal(sim: _PushSim, dx: float) -> np.ndarray:
+    return sim.dough + np.float32([dx, 0.0, 0.0])
+
+
+def test_stops_a_push_that_runs_past_its_goal():
+    sim = _PushSim()
+    start_x = float(sim.dough[:, 0].mean())
+    goal = _goal(sim, -0.15)  # 15 env steps away
+    run = run_skill(sim, _SKILL, _AlwaysLeft(), np.arange(300), goal, idle_steps=0, stop=RegressionStop())
+    assert run.stopped and run.done and run.steps < _SKILL.max_steps
+    overshoot = (start_x - 0.15) - float(sim.dough[:, 0].mean())
+    assert 0.0 < overshoot <= 0.05, overshoot  # stopped a few steps past the goal, not 25 steps past it
+    # without the stop the controller pushes to its step limit, 25 cm past the goal
+    sim2 = _PushSim()
+    run2 = run_skill(sim2, _SKILL, _AlwaysLeft(), np.arange(300), _goal(sim2, -0.15), idle_steps=0)
+    assert not run2.stopped and not run2.done and run2.steps == _SKILL.max_steps
+
+
+def test_never_stops_a_step_that_has_made_no_progress():
+    sim = _PushSim()
+    goal = _goal(sim, +0.15)  # the goal is to the right: pushing left only moves away from it
+    run = run_skill(sim, _SKILL, _AlwaysLeft(), np.arange(300), goal, idle_steps=0, stop=RegressionStop())
+    assert not run.stopped and run.steps == _SKILL.max_steps
+
+
+def test_without_a_goal_the_stop_is_ignored():
+    run = run_skill(_PushSim(), _SKILL, _AlwaysLeft(), np.arange(300), None, idle_steps=0, max_steps=5,
+                    stop=RegressionStop())
+    assert not run.stopped and run.steps == 5
+
+
+def test_stop_counts_consecutive_steps_above_the_rise():
+    stop = RegressionStop(rise=0.5, patience=2, progress=0.5)
+    goal = np.zeros((10, 3), np.float32)
+    piece = lambda d: goal + np.float32([d, 0, 0])  # Chamfer distance 2 d^2
+    stop.start(piece(1.0), goal)
+    assert not stop.update(piece(0.1))  # progress: best 0.02
+    assert not stop.update(piece(0.2))  # 0.08 > 0.03: one step above
+    assert not stop.update(piece(0.1))  # back at the best: the count restarts
+    assert not stop.update(piece(0.2))
+    assert stop.update(piece(0.2))      # two in a row
+    with pytest.raises(InputError, match="before start"):
+        RegressionStop().update(goal)
+    with pytest.raises(InputError, match="rise > 0"):
+        RegressionStop(rise=0.0)
+
+
+def test_execute_config_chooses_which_controllers_are_watched():
+    assert ExecuteConfig(controller="learned").regression_stop() is not None
+    assert ExecuteConfig(controller="heuristic").regression_stop() is None
+    assert ExecuteConfig(controller="heuristic", regress_stop="all").regression_stop() is not None
+    assert ExecuteConfig(controller="learned", regress_stop="off").regression_stop() is None
+    assert ExecuteConfig(controller="learned", regress_rise=0.25).regression_stop().rise == 0.25
+    with pytest.raises(ConfigError, match="regress_stop"):
+        ExecuteConfig(regress_stop="sometimes")
+    with pytest.raises(ConfigError, match="regress_rise"):
+        ExecuteConfig(regress_rise=-1.0)
