@@ -22,6 +22,7 @@ def run(args: argparse.Namespace) -> int:
     from pasta.distributed import split_backend_args
 
     backend, rest = split_backend_args(args.overrides)
+    backend.check()  # a missing Ray fails before anything is written
     cfg = build_many(rest, [DemoConfig], command="pasta demos")[0]
     validate(cfg)  # every bad argument fails here, before a simulator starts
     try:

@@ -131,6 +131,7 @@ def run(args: argparse.Namespace) -> int:
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
     backend, items = split_backend_args(list(args.overrides))
+    backend.check()  # a missing Ray fails before any model is loaded
     own_run, execute_kw, rest = split_overrides(items)
     mine = [f"{k}={v}" for k, v in own_run.items()]
     passthrough = []

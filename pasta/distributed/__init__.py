@@ -70,6 +70,14 @@ class BackendConfig:
     num_cpus: int = 0
     object_store_mb: int = 256
 
+    def check(self) -> "BackendConfig":
+        """Fail now, before any work, when the backend cannot be used here (Ray not installed)."""
+        if self.name == "ray":
+            from pasta.distributed.ray_backend import import_ray
+
+            import_ray()
+        return self
+
     def describe(self) -> str:
         if self.name != "ray":
             return "local"

@@ -638,6 +638,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
 
     say = echo or (lambda line: print(line, flush=True))
     backend, items = split_backend_args(items)  # backend= and ray.* go to the demos units, not to a stage
+    backend.check()
     cfg, overrides = parse_arguments(items)
     units = plan(cfg, overrides)
     _check_inputs(cfg, units)
