@@ -3,7 +3,11 @@
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
-STAMP := $(VENV)/.installed
+# extras installed with pasta: dev (pytest, hypothesis). CI (.ci/run) sets EXTRAS=dev,ray so that the Ray
+# backend's tests run there; `make demo` and a newcomer's `make test` do not need Ray (those tests skip).
+EXTRAS ?= dev
+comma := ,
+STAMP := $(VENV)/.installed-$(subst $(comma),-,$(EXTRAS))
 
 .PHONY: install demo train test test-all clean
 
@@ -12,7 +16,7 @@ install: $(STAMP)
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade "pip>=23"
-	$(PY) -m pip install --quiet -c constraints.txt -e ".[dev]"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[$(EXTRAS)]"
 	touch $(STAMP)
 
 # crs on the first fixed test config with the shipped weights: plan (exhaustive), execute with the learned

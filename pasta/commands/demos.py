@@ -1,4 +1,4 @@
-"""``pasta demos skill=cut num=200 out=DIR [workers=2] [seed=0]``: generate expert demonstrations."""
+"""``pasta demos skill=cut num=200 out=DIR [workers=2] [seed=0] [backend=local|ray]``: generate expert demonstrations."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import argparse
 import sys
 
 HELP = ("generate demonstrations of a skill with its scripted expert on the scenes its plugin draws "
-        "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points, scene); "
-        "any registered skill whose plugin defines demo_scene and an expert; resumable: existing demos are kept")
+        "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points, scene, "
+        "backend=local|ray, ray.address, ray.num_cpus); any registered skill whose plugin defines demo_scene and an "
+        "expert; resumable: existing demos are kept; backend=ray runs them as Ray tasks (docs/scaling.md)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -18,14 +19,18 @@ def run(args: argparse.Namespace) -> int:
     from pasta.demos.generate import DemoConfig, generate_demos, validate
     from pasta.demos.workers import DemoWorkerError
     from pasta.config.overrides import build_many
+    from pasta.distributed import split_backend_args
 
-    cfg = build_many(args.overrides, [DemoConfig], command="pasta demos")[0]
+    backend, rest = split_backend_args(args.overrides)
+    backend.check()  # a missing Ray fails before anything is written
+    cfg = build_many(rest, [DemoConfig], command="pasta demos")[0]
     validate(cfg)  # every bad argument fails here, before a simulator starts
     try:
-        summary = generate_demos(cfg)
+        summary = generate_demos(cfg, backend=backend)
     except DemoWorkerError as exc:  # not a usage error (exit 2): the run itself could not finish
         print(f"pasta demos: error: {exc}", file=sys.stderr)
         return 1
     print(f"demos {cfg.skill}: {summary['generated']} generated, {summary['skipped']} already there, "
-          f"{summary['wall_s']:.1f} s, {summary['mean_steps']:.1f} steps per demo on average -> {cfg.out}/{cfg.skill}")
+          f"{summary['wall_s']:.1f} s, {summary['mean_steps']:.1f} steps per demo on average -> {cfg.out}/{cfg.skill} "
+          f"[{summary['backend']}]")
     return 0

@@ -29,8 +29,10 @@ EPILOG = """examples:
   pasta eval task=crs method=pasta horizon=5 num=20      # a longer planning horizon than the task needs
   pasta eval task=cut_rearrange method=oracle num=20
   pasta eval task=crs method=pasta skills=cut,push,roll   # plan with these skills only
-keys: task method num split(test|val) out models controller horizon skeleton skills resume threads,
-execute.<field>; other key=value items go to the run config (planner, planner.*, device). Without skills=,
+  pasta eval task=crs method=pasta workers=2              # two episodes at a time, in local worker processes
+  pasta eval task=crs method=pasta backend=ray ray.address=auto   # episodes as Ray tasks on a cluster
+keys: task method num split(test|val) out models controller horizon skeleton skills resume threads workers,
+backend(local|ray) ray.address ray.num_cpus, execute.<field>; other key=value items go to the run config (planner, planner.*, device). Without skills=,
 skills with no trained weights under the models root are left out with a warning (as `pasta run`)."""
 
 
@@ -53,6 +55,9 @@ class EvalArgs:
     # torch CPU threads (0: torch's default). 1 by default: crs planning took 5.6 s with 1 thread and
     # 126 s with 2 on a 2-core machine that was also running a training job.
     threads: int = 1
+    # episodes at once: 0 runs them in this process; N in N local worker processes (backend=local) or at
+    # most N Ray tasks in flight (backend=ray; 0: as many as the cluster has CPUs). docs/scaling.md
+    workers: int = 0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -85,14 +90,49 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
             "execute_s_mean": float(np.mean([r.get("execute_s", 0.0) for r in rows])) if rows else 0.0}
 
 
+@dataclass
+class EvalState:
+    """What a worker (or this process) reuses across episodes: the session, its simulator, the provenance."""
+
+    session: Any
+    sim: Any
+    machine: dict[str, Any]
+
+
+def eval_init(setup: dict[str, Any]) -> EvalState:
+    """Build a worker's :class:`EvalState` from the evaluation's settings (:func:`pasta.distributed.map_jobs`)."""
+    from pasta.execute.session import build_session
+    from pasta.io.provenance import provenance
+
+    if setup["threads"] > 0:
+        import torch
+
+        torch.set_num_threads(setup["threads"])
+    session = build_session(setup["task"], method=setup["method"], models=setup["models"] or None,
+                            config_overrides=list(setup["config_overrides"]), execute=dict(setup["execute"]),
+                            horizon=setup["horizon"] or None, skeleton=setup["skeleton"], skills=setup["skills"] or None)
+    sim = session.task.make_sim()  # it starts Taichi, whose settings the provenance records
+    # versions, CPU, Taichi arch and compile options: results differ slightly between machines (docs/simulator.md)
+    return EvalState(session, sim, provenance(sim_config=session.task.sim_config))
+
+
+def eval_job(state: EvalState, seed: int, attempt: int) -> dict[str, Any]:
+    """One episode's result row (the driver appends it to the result file)."""
+    t0 = time.perf_counter()
+    out = state.session.episode(seed, sim=state.sim)
+    return {**out.to_dict(), "wall_s": round(time.perf_counter() - t0, 2), "setup": state.session.describe(),
+            "provenance": state.machine}
+
+
 def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import print_skill_warning, split_overrides
     from pasta.config.overrides import build_many
-    from pasta.execute.session import build_session
-    from pasta.io.provenance import provenance
+    from pasta.distributed import map_jobs, split_backend_args
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
-    own_run, execute_kw, rest = split_overrides(list(args.overrides))
+    backend, items = split_backend_args(list(args.overrides))
+    backend.check()  # a missing Ray fails before any model is loaded
+    own_run, execute_kw, rest = split_overrides(items)
     mine = [f"{k}={v}" for k, v in own_run.items()]
     passthrough = []
     fields = set(EvalArgs.__dataclass_fields__)
@@ -118,13 +158,12 @@ def run(args: argparse.Namespace) -> int:
     check_threads(opts.threads, "threads")
     check_int(opts.horizon, "horizon", low=0)
     check_output_dir(opts.out, "out")  # before any model is loaded: a bad out= must not cost an evaluation
-    if opts.threads > 0:
-        import torch
-
-        torch.set_num_threads(opts.threads)
-    session = build_session(opts.task, method=opts.method, models=opts.models or None, config_overrides=passthrough,
-                            execute=execute_kw, horizon=opts.horizon or None, skeleton=opts.skeleton,
-                            skills=opts.skills or None)
+    check_int(opts.workers, "workers", low=0)
+    setup = {"task": opts.task, "method": opts.method, "models": opts.models, "config_overrides": list(passthrough),
+             "execute": dict(execute_kw), "horizon": opts.horizon, "skeleton": opts.skeleton, "skills": opts.skills,
+             "threads": opts.threads}
+    state = eval_init(setup)  # this process's session: the result path, the summary, the episodes with workers=0
+    session, machine = state.session, state.machine
     print_skill_warning(session)
     path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split, opts.skills)
     check_output_file(path, "out")  # e.g. a directory of the result file's name in out=
@@ -145,21 +184,33 @@ def run(args: argparse.Namespace) -> int:
     todo = [s for s in seeds if s not in done]
     print(f"eval {opts.task} / {opts.method}: {len(seeds)} {opts.split} configs, {len(seeds) - len(todo)} already in {path}",
           file=sys.stderr)
-    sim = session.task.make_sim()  # also when nothing is left to run: it starts Taichi, whose settings are recorded
-    # versions, CPU, Taichi arch and compile options: results differ slightly between machines (docs/simulator.md)
-    machine = provenance(sim_config=session.task.sim_config)
-    for i, seed in enumerate(todo):
-        t0 = time.perf_counter()
-        out = session.episode(seed, sim=sim)
-        row = {**out.to_dict(), "wall_s": round(time.perf_counter() - t0, 2), "setup": session.describe(),
-               "provenance": machine}
-        with path.open("a") as f:  # one line per finished episode: nothing is lost on interruption
+    where = "" if backend.name == "local" and not opts.workers else f" on {backend.describe()}" + (
+        f" with {opts.workers} workers" if opts.workers else "")
+    failed: dict[int, str] = {}
+    for outcome in map_jobs(eval_init, eval_job, setup, todo, backend=backend, workers=opts.workers,
+                            label="episode", prog="pasta eval", state=state):
+        seed = int(outcome.item)
+        if not outcome.ok:
+            failed[seed] = outcome.error or ""
+            print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: failed, {failed[seed].splitlines()[0]}",
+                  file=sys.stderr, flush=True)
+            continue
+        row = outcome.value
+        with path.open("a") as f:  # one line per finished episode, by this process only: nothing is lost on interruption
             f.write(json.dumps(row) + "\n")
         done[seed] = row
         skel = "-".join(row.get("skeleton", [])) or "ground truth"
-        print(f"[{len(seeds) - len(todo) + i + 1}/{len(seeds)}] seed {seed}: {skel:<24} improvement {out.improvement:+.3f} "
-              f"{'success' if out.success else 'failure'}  (plan {out.plan_s:.1f} s, execute {out.execute_s:.1f} s)",
-              file=sys.stderr, flush=True)
+        print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: {skel:<24} improvement {row['improvement']:+.3f} "
+              f"{'success' if row['success'] else 'failure'}  (plan {row['plan_s']:.1f} s, execute {row['execute_s']:.1f} s)"
+              f"{where}", file=sys.stderr, flush=True)
+    if failed:
+        first = min(failed)
+        lines = [f"pasta eval: error: {len(failed)} of {len(seeds)} episodes of {opts.task} / {opts.method} failed "
+                 f"(the other {len(done)} are in {path}; run the same command again to retry them; no summary written):"]
+        lines += [f"  seed {s}: {failed[s].splitlines()[0]}" for s in sorted(failed)[:10]]
+        detail = failed[first].partition("\n")[2].rstrip()
+        print("\n".join(lines + ([f"seed {first}:", detail] if detail else [])), file=sys.stderr)
+        return 1
     rows = [done[s] for s in seeds]
     summary = {**session.describe(), "split": opts.split, "seeds": [seeds[0], seeds[-1]], **summarise(rows),
                "provenance": machine}

@@ -16,7 +16,11 @@ EPILOG = """arguments (key=value):
   variant_demos=-1       demonstrations per scene variant a skill asks the pipeline for, added after
                          its default ones (push: 150 scene=wide, unit demos/push-wide); -1: each
                          variant's own number; 0: none
-  workers=2              demo generation processes (same as demos.workers)
+  workers=2              demo generation processes (same as demos.workers); with backend=ray the
+                         most demos in flight (0: as many as the cluster has CPUs)
+  backend=local          local | ray: where the demos units make their demonstrations (Ray tasks;
+                         ray.address=auto joins a cluster, none starts a local Ray instance;
+                         `pip install pasta-dough[ray]`, docs/scaling.md); never causes a rerun
   stages=demos,vae,feasibility,cost,policy,reset,select
                          stages to run, in this order whatever the order given
   skills=auto            skills of the per-skill stages (demos, feasibility, policy, reset, select);
@@ -75,6 +79,7 @@ examples:
   pasta pipeline stages=policy skills=cut,roll policy.epochs=20
   pasta pipeline stages=select select.n=10              # re-choose the stopping rules (cut and roll)
   pasta pipeline force=true only=cost                    # retrain the cost model even if done
+  pasta pipeline backend=ray ray.address=auto workers=0  # demonstrations on the Ray cluster
   make train                                             # the same as `pasta pipeline`"""
 
 

@@ -20,8 +20,10 @@ Layout of a dataset directory (fixed; the trainers read it)::
 
 Demo ``i`` of a skill depends only on (seed, skill, i), so runs are reproducible and resumable: files
 that exist are skipped, and each file is written under a temporary name and renamed when complete.
-Workers are separate processes (``spawn``), each with its own Taichi runtime; a worker that dies is
-replaced and its demo retried, and workers die with the parent (:mod:`pasta.demos.workers`).
+Demos are made by :func:`pasta.distributed.map_jobs`: in this process, in local worker processes
+(``spawn``, each with its own Taichi runtime; a worker that dies is replaced and its demo retried, workers
+die with the parent: :mod:`pasta.distributed.local`) or as Ray tasks (``backend=ray``,
+:mod:`pasta.distributed.ray_backend`). Only this process writes the files, whatever made the arrays.
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ import numpy as np
 
 from pasta.core.errors import ConfigError
 from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
+from pasta.distributed import BackendConfig, BackendError
 from pasta.demos.scene import check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles, variant_config
 
 FORMAT = "pasta-demos/1"
@@ -232,16 +235,34 @@ def failure_report(cfg: DemoConfig, failures: dict[int, str]) -> str:
                       f"out={cfg.out} workers=0 scene={cfg.scene}", *([detail] if detail else [])])
 
 
-def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int = MAX_ATTEMPTS) -> dict[str, Any]:
+def demo_init(setup: dict) -> DemoWriter:
+    """A worker's state for demos (:func:`pasta.distributed.map_jobs`): one simulator, reused."""
+    return DemoWriter(DemoConfig(**setup))
+
+
+def demo_job(writer: DemoWriter, index: int, attempt: int) -> dict[str, np.ndarray]:
+    """Demo ``index``'s arrays; the driver writes them (:func:`generate_demos`)."""
+    return writer.generate(index)
+
+
+def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int = MAX_ATTEMPTS,
+                   backend: BackendConfig | None = None) -> dict[str, Any]:
     """Generate the missing demonstrations of ``cfg.skill`` and update the manifest.
 
-    With ``cfg.workers > 0`` the demos are made in worker processes (:mod:`pasta.demos.workers`): a demo
-    whose worker dies is retried in a new worker, up to ``max_attempts`` times.
+    The demos are made by :func:`pasta.distributed.map_jobs`: in this process (``workers=0``), in
+    ``cfg.workers`` local worker processes, or with ``backend`` Ray as Ray tasks (``cfg.workers``: the
+    most in flight, 0: the cluster's CPUs). A demo whose worker dies is retried, up to ``max_attempts``
+    times. Workers only compute; this process writes every file as its demo arrives, so an interrupted
+    run loses only the demos in flight.
 
-    Returns a summary: ``generated``, ``skipped``, ``wall_s``, ``mean_steps``.
+    Returns a summary: ``generated``, ``skipped``, ``wall_s``, ``mean_steps``, ``backend``.
     Raises :class:`ConfigError` on bad arguments before any work, :class:`DemoWorkerError` naming the
     demos (with their seeds) that could not be made, after the others are written.
     """
+    from pasta.distributed import map_jobs
+    from pasta.tasks.npz import write_npz
+
+    backend = backend or BackendConfig()
     validate(cfg)
     todo = pending(cfg)
     skipped = cfg.num - len(todo)
@@ -252,25 +273,23 @@ def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int 
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
-    with Progress(*columns, disable=not progress or not todo) as bar:
-        task = bar.add_task(f"demos {cfg.skill}", total=len(todo))
-        if cfg.workers == 0 or len(todo) <= 1:
-            writer = DemoWriter(cfg) if todo else None
-            for i in todo:
-                n, _ = writer.write(i)
-                steps.append(n)
+    workers = cfg.workers if backend.name == "ray" or len(todo) > 1 else 0
+    try:
+        with Progress(*columns, disable=not progress or not todo) as bar:
+            task = bar.add_task(f"demos {cfg.skill}", total=len(todo))
+            for outcome in map_jobs(demo_init, demo_job, asdict(cfg), todo, backend=backend, workers=workers,
+                                    max_attempts=max_attempts, label="demo", prog="pasta demos"):
+                if outcome.ok:
+                    write_npz(demo_path(cfg.out, cfg.skill, outcome.item), outcome.value)
+                    steps.append(int(outcome.value["action"].shape[0]))
+                else:
+                    failures[outcome.item] = outcome.error
                 bar.advance(task)
-        else:
-            from pasta.demos.workers import run_workers
-
-            def done(_index: int, n: int, _secs: float) -> None:
-                steps.append(n)
-                bar.advance(task)
-
-            failures = run_workers(asdict(cfg), todo, min(cfg.workers, len(todo)), done,
-                                   tmp_dir=Path(cfg.out) / cfg.skill, max_attempts=max_attempts)
-    write_manifest(cfg)
+    except BackendError as exc:
+        raise DemoWorkerError(str(exc)) from None
+    finally:
+        write_manifest(cfg)
     if failures:
         raise DemoWorkerError(failure_report(cfg, failures))
     return {"generated": len(steps), "skipped": skipped, "wall_s": time.perf_counter() - t0,
-            "mean_steps": float(np.mean(steps)) if steps else 0.0}
+            "mean_steps": float(np.mean(steps)) if steps else 0.0, "backend": backend.describe()}

@@ -35,6 +35,11 @@ it is only done while ``model.json`` still holds the rule it chose. A unit with 
 unit is done when its record matches and every file exists; otherwise ``pasta demos`` fills in the
 missing files (it never rewrites existing ones).
 
+Backends. ``backend=ray`` (with ``ray.address=``, :class:`pasta.distributed.BackendConfig`) makes the
+demos units' demonstrations as Ray tasks (``workers``: the most in flight); the training units run in
+this process, one after the other (each depends on the last, or trains on every skill's data). The
+backend is not part of a unit's settings: switching it never reruns a unit. See docs/scaling.md.
+
 Every unit's configuration is built up front with the trainers' own config builders, so a typo in
 ``<stage>.<key>=value`` fails with their "did you mean" message before any work starts.
 """
@@ -535,10 +540,10 @@ def _demo_status(unit: Unit, record: Mapping[str, Any] | None, current: dict[str
     return same and missing == 0, f"{missing} of {unit.configs[0].num} demos to generate"
 
 
-def _run_demos(cfg: PipelineConfig, unit: Unit) -> dict[str, Any]:
+def _run_demos(cfg: PipelineConfig, unit: Unit, backend: Any = None) -> dict[str, Any]:
     from pasta.demos.generate import generate_demos
 
-    summary = generate_demos(unit.configs[0], progress=cfg.progress)
+    summary = generate_demos(unit.configs[0], progress=cfg.progress, backend=backend)
     return {"count": unit.configs[0].num, "generated": summary["generated"], "mean_steps": summary["mean_steps"]}
 
 
@@ -629,7 +634,11 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
     Raises:
         ConfigError: bad arguments (before any work starts), or a unit's own configuration error.
     """
+    from pasta.distributed import split_backend_args
+
     say = echo or (lambda line: print(line, flush=True))
+    backend, items = split_backend_args(items)  # backend= and ray.* go to the demos units, not to a stage
+    backend.check()
     cfg, overrides = parse_arguments(items)
     units = plan(cfg, overrides)
     _check_inputs(cfg, units)
@@ -637,7 +646,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
     results: list[UnitResult] = []
     n = len(units)
     say(f"pasta pipeline: {n} unit(s): {', '.join(u.name for u in units)}; data={cfg.data} out={cfg.out}"
-        + (" force=true" if cfg.force else ""))
+        + (" force=true" if cfg.force else "") + (f" backend={backend.describe()}" if backend.name != "local" else ""))
     try:
         for i, unit in enumerate(units, 1):
             tag = f"[{i}/{n}] {unit.name}"
@@ -662,7 +671,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
             _write_record(out, unit.name, {"settings": current, "status": "running", "started": started})
             t0 = time.perf_counter()
             try:
-                metrics = _run_demos(cfg, unit) if unit.stage == "demos" else _run_training(cfg, unit)
+                metrics = _run_demos(cfg, unit, backend) if unit.stage == "demos" else _run_training(cfg, unit)
             except BaseException as exc:
                 wall = time.perf_counter() - t0
                 status = "interrupted" if isinstance(exc, KeyboardInterrupt) else "failed"

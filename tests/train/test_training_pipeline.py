@@ -96,7 +96,7 @@ def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
     import pasta.demos.generate as generate
     from pasta.train.synthetic import synthetic_demo
 
-    def fake_generate(cfg, *, progress=True):
+    def fake_generate(cfg, *, progress=True, backend=None):
         todo = generate.pending(cfg)
         for i in todo:
             arrays = synthetic_demo(cfg.skill, seed=i, steps=3, num_points=50)

@@ -1,0 +1,75 @@
+"""``pasta.distributed.map_jobs`` without Ray: in this process and in local worker processes; the backend
+arguments and their one-line errors (no Ray needed; the Ray side is test_ray.py).
+
+The jobs are the toys of ``_distributed_jobs`` (no simulator).
+"""
+
+from __future__ import annotations
+
+import sys
+
+import _distributed_jobs as toy
+import pytest
+
+from pasta.core.errors import ConfigError
+from pasta.distributed import TEST_KILL_ENV, BackendConfig, BackendError, split_backend_args
+
+RAY = BackendConfig(name="ray")
+
+
+def test_in_process_values_and_a_failing_item():
+    out = toy.run(BackendConfig(), 0)
+    toy.check_values(out)
+    assert {o.value["attempt"] for o in out.values() if o.ok} == {1}
+
+
+def test_local_workers_values_and_a_failing_item():
+    out = toy.run(BackendConfig(), 2)
+    toy.check_values(out)
+    assert len({o.value["pid"] for o in out.values() if o.ok}) <= 2  # state built once per worker process
+
+
+def test_local_worker_killed_once_is_retried(monkeypatch, capfd):
+    monkeypatch.setenv(TEST_KILL_ENV, "1@1")
+    out = toy.run(BackendConfig(), 2)
+    toy.check_values(out)
+    assert out[1].attempts == 2 and out[1].value["attempt"] == 2
+    assert "killed by SIGKILL on toy 1; toy 1 goes back to the queue" in capfd.readouterr().err
+
+
+def test_split_backend_args():
+    cfg, rest = split_backend_args(["skill=push", "backend=ray", "ray.address=auto", "ray.num_cpus=2", "num=3"])
+    assert (cfg.name, cfg.address, cfg.num_cpus) == ("ray", "auto", 2) and rest == ["skill=push", "num=3"]
+    cfg, rest = split_backend_args({"data": "x", "workers": 0})
+    assert cfg.name == "local" and rest == {"data": "x", "workers": 0}
+    for bad, msg in [(["backend=rya"], "backend=rya: must be one of local, ray; did you mean 'ray'"),
+                     (["ray.adress=auto", "backend=ray"], "unknown key 'ray.adress'"),
+                     (["ray.address=auto"], "ray.address is a setting of the Ray backend; add backend=ray"),
+                     (["backend=ray", "ray.num_cpus=-1"], "ray.num_cpus=-1")]:
+        with pytest.raises(ConfigError, match=msg.replace("(", r"\(").replace(")", r"\)")):
+            split_backend_args(bad)
+
+
+def test_missing_ray_is_a_one_line_error(monkeypatch, capsys, tmp_path):
+    from pasta.cli import main
+
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
+    with pytest.raises(ConfigError, match=r"backend=ray needs Ray, which is not installed: pip install pasta-dough\[ray\]"):
+        toy.run(RAY, 2)
+    assert main(["demos", "skill=push", "num=1", f"out={tmp_path}", "backend=ray"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith("backend=ray needs Ray, which is not installed: pip install pasta-dough[ray]")
+
+
+@pytest.mark.parametrize("args", [["demos", "skill=push", "backend=rya"], ["eval", "task=push", "ray.address=auto"],
+                                  ["pipeline", "backend=slurm"]])
+def test_cli_bad_backend_exits_2(args, capsys, tmp_path):
+    from pasta.cli import main
+
+    assert main(args + [f"out={tmp_path}"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+
+
+def test_init_failure_stops_the_run():
+    with pytest.raises(BackendError, match="a worker could not start"):
+        toy.run(BackendConfig(), 2, setup={"scale": 1, "fail_init": True})
