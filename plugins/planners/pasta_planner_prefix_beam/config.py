@@ -18,9 +18,9 @@ class PrefixBeamConfig(HalvingConfig):
     final: int = 6  # complete sequences optimised jointly at the end (num_samples / iterations as above)
     prefix_samples: int = 16  # samples of each one-step prefix search
     prefix_iterations: int = 30  # iterations of each one-step prefix search
-    # False: every complete sequence of 1..H steps is a candidate (as exhaustive with max_horizon=H);
-    # True: only sequences of exactly H steps (as exhaustive with max_horizon=0).
-    exact_horizon: bool = False
+    # as exhaustive's: 0: only sequences of the problem's horizon H; N > 0: every complete sequence of
+    # 1..N steps is a candidate (ignored when the problem gives a skeleton)
+    max_horizon: int = 0
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -31,3 +31,4 @@ class PrefixBeamConfig(HalvingConfig):
         check_int(self.window, "planner.window", low=1)
         check_int(self.prefix_samples, "planner.prefix_samples", low=1)
         check_int(self.prefix_iterations, "planner.prefix_iterations", low=0)
+        check_int(self.max_horizon, "planner.max_horizon", low=0)

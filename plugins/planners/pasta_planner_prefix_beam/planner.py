@@ -35,8 +35,8 @@ class PrefixBeamPlanner(LatentPlanner):
     is the optimistic estimate of the rest. The best ``width`` children of each entity count are kept
     (a set with fewer entities than the goal leaves goal entities unmatched, so values are only
     compared between prefixes of the same count). Every child whose
-    entity count equals the goal's is a complete candidate (any length ``1..H``; only ``H`` with
-    ``exact_horizon``); the ``final`` best of them are optimised jointly from the observed set with
+    entity count equals the goal's is a complete candidate (only length ``H``, or with
+    ``max_horizon = N > 0`` any length ``1..N``, as ``exhaustive``); the ``final`` best of them are optimised jointly from the observed set with
     ``num_samples`` x ``iterations`` (the same :func:`search` and objective as ``exhaustive``), and the
     best wins. A given ``problem.skeleton`` is searched directly. At most ``width * C * K`` window searches
     per depth (``C`` entity counts): time grows about linearly in ``H`` and ``K`` instead of ``K^H``.
@@ -61,8 +61,9 @@ class PrefixBeamPlanner(LatentPlanner):
         timings["enumerate"] = time.perf_counter() - t0 - sum(timings.values())
         info = self.info(sequences, [result])
         info["beam"] = {"width": int(cfg.width), "final": int(cfg.final), "prefix_samples": int(cfg.prefix_samples),
-                        "prefix_iterations": int(cfg.prefix_iterations), "exact_horizon": bool(cfg.exact_horizon),
-                        "prefix_searches": sum(s["expanded"] for s in stages),
+                        "prefix_iterations": int(cfg.prefix_iterations), "max_horizon": int(cfg.max_horizon),
+                        "prefix_searches": sum(s["searches"] for s in stages),
+                        "prefixes": sum(s["expanded"] for s in stages),
                         "prefix_evaluations": sum(s["evaluations"] for s in stages), "stages": stages}
         return self.package(problem, result.skeleton, result.attention, result.subgoals, timings=timings, info=info)
 
@@ -70,8 +71,9 @@ class PrefixBeamPlanner(LatentPlanner):
         cfg = self.cfg
         t0 = time.perf_counter()
         specs = [s.spec for s in problem.skills]
-        horizon, k_goal, floor = int(problem.horizon), len(problem.goal), float(cfg.feasibility_floor)
-        exact = bool(cfg.exact_horizon)
+        k_goal, floor = len(problem.goal), float(cfg.feasibility_floor)
+        exact = int(cfg.max_horizon) <= 0
+        horizon = int(problem.horizon) if exact else int(cfg.max_horizon)
 
         @functools.lru_cache(maxsize=None)
         def reaches(k: int, steps: int) -> bool:
@@ -94,24 +96,31 @@ class PrefixBeamPlanner(LatentPlanner):
         stages: list[dict] = []
         for depth in range(1, horizon + 1):
             children: list[_Prefix] = []
-            evaluations = 0
+            evaluations = searches = 0
+            lo = max(0, depth - int(cfg.window))
             for parent in beam:
                 k = parent.states[-1].shape[0]
-                for spec in specs:
-                    if k < spec.n_in or not can_finish(k + spec.delta, horizon - depth):
+                names = [sp.name for sp in specs if k >= sp.n_in and can_finish(k + sp.delta, horizon - depth)]
+                if not names:
+                    continue
+                # one search for all children of this parent: they share the start set parent.states[lo]
+                res = search(problem, [(parent.skills + (n,))[lo:] for n in names], pcfg, gen, method=self.method,
+                             start=parent.states[lo])
+                evaluations += res.evaluations
+                searches += 1
+                for name, best in zip(names, res.best):
+                    if best is None:
                         continue
-                    skills = parent.skills + (spec.name,)
-                    lo = max(0, depth - int(cfg.window))
-                    res = search(problem, [skills[lo:]], pcfg, gen, method=self.method, start=parent.states[lo])
-                    evaluations += res.evaluations
+                    window_skills, window_attention, window_subgoals, score = best
+                    skills = parent.skills + (name,)
                     states, log_feas = list(parent.states[: lo + 1]), list(parent.log_feas[: lo + 1])
                     with torch.no_grad():
-                        for name, inputs, new in zip(skills[lo:], res.attention, res.subgoals):
+                        for step, inputs, new in zip(window_skills, window_attention, window_subgoals):
                             state, inputs = states[-1], list(inputs)
-                            f = float(problem.skill_map[name].feasibility(state[inputs].unsqueeze(0), new.unsqueeze(0))[0])
+                            f = float(problem.skill_map[step].feasibility(state[inputs].unsqueeze(0), new.unsqueeze(0))[0])
                             states.append(torch.cat([new, state[list(kept_indices(len(state), inputs))]], 0))
                             log_feas.append(log_feas[-1] + math.log(max(f, floor)))
-                    child = _Prefix(skills, states, log_feas, log_feas[lo] + math.log(max(res.score, 1e-300)))
+                    child = _Prefix(skills, states, log_feas, log_feas[lo] + math.log(max(score, 1e-300)))
                     children.append(child)
                     if len(states[-1]) == k_goal and (not exact or depth == horizon):
                         complete[child.skills] = child.value
@@ -126,7 +135,7 @@ class PrefixBeamPlanner(LatentPlanner):
                     per_count[n] = per_count.get(n, 0) + 1
                     kept.append(i)
             beam = [children[i] for i in kept] if depth < horizon else []
-            stages.append({"depth": depth, "expanded": len(children), "evaluations": evaluations,
+            stages.append({"depth": depth, "expanded": len(children), "searches": searches, "evaluations": evaluations,
                            "kept": [list(children[i].skills) for i in kept],
                            "ranked": [{"skills": list(children[i].skills), "value": children[i].value} for i in order]})
             if not beam:
