@@ -8,6 +8,15 @@ samples over all 12 sequences (``planner.num_samples = samples // 12``).
 
     .venv/bin/python benchmarks/bench_planner.py                      # table + docs/planning_bench.png
     .venv/bin/python benchmarks/bench_planner.py --samples 500 5000 --iterations 100 --hidden 256
+
+``--scaling``: planning time and score against the horizon (``--horizons``, default 3..8) and the number
+of skills (``--skills``: 3 = cut, push, roll; 5 = also lift 1 -> 1 and gather 3 -> 1), 1 -> 2 entities,
+sequences of exactly H steps, for ``exhaustive`` and ``prefix_beam`` side by side (``--samples-per-seq``
+samples per sequence for both final searches). An exhaustive point whose predicted time (the last
+measured time scaled by the growth of the number of sequences) exceeds ``--budget`` seconds is not run
+and is marked in the table; the fitted growth is printed at the end.
+
+    .venv/bin/python benchmarks/bench_planner.py --scaling --threads 1 --plot docs/planning_scaling.png
 """
 
 from __future__ import annotations
@@ -23,6 +32,8 @@ from pasta.plugins import get_plugins
 from pasta.plugins.checks import configured
 
 SPECS = [SkillSpec("cut", 1, 2, "knife"), SkillSpec("push", 1, 1, "pusher"), SkillSpec("roll", 1, 1, "roller")]
+#: the two further registered skills (LiftSpread / GatherMove issue): their cardinalities, for --scaling
+EXTRA_SPECS = [SkillSpec("lift", 1, 1, "spatula"), SkillSpec("gather", 3, 1, "gripper")]
 
 
 class PriorEncoder(Encoder):
@@ -60,8 +71,8 @@ def _skill(spec: SkillSpec) -> Skill:
     return type(f"Bench_{spec.name}", (Skill,), {"spec": spec})()
 
 
-def build_problem(models: str | None, hidden: int, seed: int = 0) -> tuple[PlanningProblem, str]:
-    skills = [_skill(s) for s in SPECS]
+def build_problem(models: str | None, hidden: int, seed: int = 0, *, specs=None, horizon: int = 3) -> tuple[PlanningProblem, str]:
+    skills = [_skill(s) for s in (specs or SPECS)]
     if models:
         from pasta.nn.loading import load_models
 
@@ -83,7 +94,7 @@ def build_problem(models: str | None, hidden: int, seed: int = 0) -> tuple[Plann
         gen = torch.Generator().manual_seed(seed)
         obs, goal = encoder.sample_prior(1, gen), encoder.sample_prior(2, gen)
         what = f"randomly initialised pasta.nn networks, hidden {hidden} (no trained weights given; cost x 1e-3)"
-    return PlanningProblem(obs, goal, skills, encoder, cost, horizon=3, seed=seed), what
+    return PlanningProblem(obs, goal, skills, encoder, cost, horizon=horizon, seed=seed), what
 
 
 def run(problem: PlanningProblem, planner: str, samples: int, **overrides) -> dict:
@@ -93,6 +104,83 @@ def run(problem: PlanningProblem, planner: str, samples: int, **overrides) -> di
     plan = p.plan(problem)
     return {"time": time.perf_counter() - t, "score": plan.score, "cost": plan.final_cost, "skills": "-".join(plan.skills),
             "evals": plan.info["evaluations"], "samples": plan.info["samples"], "optimise": plan.timings["optimise"]}
+
+
+def scaling(args) -> None:
+    """Time and score vs horizon and number of skills, exhaustive against prefix_beam (same final search)."""
+    from pasta.core import enumerate_skeletons
+
+    results = []  # (planner, K, H, row or None, note)
+    print(f"# scaling: 1 -> 2 entities, sequences of exactly H steps, {args.iterations} iterations, "
+          f"{args.samples_per_seq} samples per sequence in the final search, successive halving on, clearance off, "
+          f"budget {args.budget:.0f} s per exhaustive point, torch {torch.__version__}, {torch.get_num_threads()} threads")
+    header = "| planner | K | H | sequences | time s | score | best sequence | note |"
+    print(header)
+    print("|---|---:|---:|---:|---:|---:|---|---|")
+    for k in args.skills:
+        specs = (SPECS + EXTRA_SPECS)[:k]
+        last = None  # (sequences, seconds) of the last exhaustive point measured
+        for h in args.horizons:
+            problem, what = build_problem(args.models, args.hidden, args.seed, specs=specs, horizon=h)
+            n_seq = len(enumerate_skeletons([s.spec for s in problem.skills], h, 1, 2))
+            for planner in ("exhaustive", "prefix_beam"):
+                # clearance_weight 0: the prior-only encoder cannot decode the extents the penalty needs
+                over = {"num_samples": args.samples_per_seq, "iterations": args.iterations, "successive_halving": True,
+                        "clearance_weight": 0.0}
+                note = ""
+                if planner == "exhaustive" and last is not None and last[1] * n_seq / last[0] > args.budget:
+                    note = f"not run: predicted {last[1] * n_seq / last[0]:.0f} s > budget"
+                    print(f"| {planner} | {k} | {h} | {n_seq} | | | | {note} |", flush=True)
+                    results.append((planner, k, h, None, note))
+                    continue
+                p = configured(get_plugins().planners, planner, over)
+                t = time.perf_counter()
+                plan = p.plan(problem)
+                r = {"time": time.perf_counter() - t, "score": plan.score, "skills": "-".join(plan.skills)}
+                if planner == "exhaustive":
+                    last = (n_seq, r["time"])
+                else:
+                    note = f"{plan.info['beam']['prefix_searches']} prefix searches, final over {plan.info['sequences']}"
+                print(f"| {planner} | {k} | {h} | {n_seq} | {r['time']:.1f} | {r['score']:.4f} | {r['skills']} | {note} |",
+                      flush=True)
+                results.append((planner, k, h, r, note))
+    import numpy as np
+
+    print()
+    for planner in ("exhaustive", "prefix_beam"):
+        for k in args.skills:
+            pts = [(h, r["time"]) for p, kk, h, r, _ in results if p == planner and kk == k and r]
+            if len(pts) >= 2:
+                hs, ts = np.array([p[0] for p in pts], float), np.array([p[1] for p in pts], float)
+                a = np.polyfit(np.log(hs), np.log(ts), 1)[0]  # time ~ H^a
+                b = np.polyfit(hs, np.log(ts), 1)[0]  # time ~ e^(b H)
+                print(f"{planner}, K={k}: time ~ H^{a:.2f} (log-log fit) or ~ {np.exp(b):.2f}^H (log-linear fit), "
+                      f"H = {int(hs[0])}..{int(hs[-1])}")
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
+        for planner, style in (("exhaustive", "s--"), ("prefix_beam", "o-")):
+            for k in args.skills:
+                pts = [(h, r) for p, kk, h, r, _ in results if p == planner and kk == k and r]
+                if pts:
+                    a.plot([p[0] for p in pts], [p[1]["time"] for p in pts], style, label=f"{planner}, K={k}")
+                    b.plot([p[0] for p in pts], [p[1]["score"] for p in pts], style, label=f"{planner}, K={k}")
+        a.set_yscale("log")
+        for ax, name in ((a, "planning time (s)"), (b, "plan score")):
+            ax.set_xlabel("horizon H")
+            ax.set_ylabel(name)
+            ax.grid(True, alpha=0.3)
+        b.legend(fontsize=8)
+        fig.suptitle(f"exhaustive vs prefix_beam, random networks hidden {args.hidden}; missing exhaustive points: "
+                     f"over the {args.budget:.0f} s budget", fontsize=9)
+        fig.tight_layout()
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(args.plot, dpi=100)
+        print(f"plot written to {args.plot}")
 
 
 def main() -> None:
@@ -106,9 +194,19 @@ def main() -> None:
     ap.add_argument("--extra", action="store_true", help="also compare matching modes and the sampling planner")
     ap.add_argument("--plot", default="docs/planning_bench.png")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--scaling", action="store_true", help="time and score vs horizon and number of skills")
+    ap.add_argument("--horizons", type=int, nargs="+", default=[3, 4, 5, 6, 7, 8])
+    ap.add_argument("--skills", type=int, nargs="+", default=[3, 5], choices=[3, 4, 5])
+    ap.add_argument("--samples-per-seq", type=int, default=32)
+    ap.add_argument("--budget", type=float, default=300.0, help="seconds: skip exhaustive points predicted longer")
     args = ap.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.scaling:
+        if args.plot == "docs/planning_bench.png":
+            args.plot = "docs/planning_scaling.png"
+        scaling(args)
+        return
     problem, what = build_problem(args.models, args.hidden, args.seed)
     print(f"# CRS structure, {len(problem.skeletons())} sequences, {args.iterations} iterations, {what}, "
           f"torch {torch.__version__}, {torch.get_num_threads()} threads")

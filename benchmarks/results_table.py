@@ -27,6 +27,14 @@ PAPER = {
 PAPER_PLAN_S = {"cut_rearrange": 35.0, "crs": 307.0, "crs_twice": 7810.0}
 TASKS = ("cut_rearrange", "crs", "crs_twice", "crs_distractors")
 METHODS = ("pasta", "sampling", "flat", "oracle")
+#: the planner a method uses unless the run names another (pasta.execute.session.build_session)
+DEFAULT_PLANNER = {"pasta": "exhaustive", "sampling": "sampling", "flat": "exhaustive"}
+
+
+def default_planner(task: str, method: str) -> str | None:
+    if method in ("pasta", "flat") and task == "crs_twice":
+        return "receding_horizon"
+    return DEFAULT_PLANNER.get(method)
 
 
 def rows(directory: Path, split: str = "test") -> list[dict]:
@@ -52,6 +60,10 @@ def main(argv: list[str]) -> int:
         paper = PAPER.get((s["task"], s["method"])) if default_run else None
         paper_txt = f"{paper[0]:.3f} / {100 * paper[1]:.0f}%" if paper else ""
         name = s["method"] + (" (learned)" if s.get("controller") == "learned" else "")
+        if s.get("planner") and s["method"] != "oracle" and s["planner"] != default_planner(s["task"], s["method"]):
+            name += f", planner {s['planner']}"  # a run with planner=NAME other than the method's default
+        if s["task"] == "crs_twice" and s["method"] != "oracle" and s.get("skeleton_given") is False:
+            name += ", no skeleton"  # the skeleton is given for crs_twice by default, as in the paper
         settings = s.get("planner_settings") or {}
         if s["method"] != "oracle" and "clearance_weight" not in settings:
             name += " (before clearance)"  # run before the clearance penalty and executor reorder existed

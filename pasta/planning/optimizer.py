@@ -43,6 +43,8 @@ class SearchResult:
         per_sequence: for every sequence, ``{"skills", "score" (best), "samples" (left at the end)}``.
         samples: candidates drawn; ``evaluations``: sample evaluations over all iterations.
         timings: seconds spent drawing candidates (``sample``) and optimising (``optimise``).
+        best: for every sequence (in ``sequences`` order), its best candidate as ``(skeleton, attention,
+            subgoals, score)`` (the winner is the best of these); ``None`` for a sequence left without samples.
     """
 
     skeleton: tuple[str, ...]
@@ -53,6 +55,7 @@ class SearchResult:
     samples: int
     evaluations: int
     timings: dict[str, float] = field(default_factory=dict)
+    best: list[tuple[tuple[str, ...], list[tuple[int, ...]], list[torch.Tensor], float] | None] = field(default_factory=list)
 
 
 def search(
@@ -265,9 +268,17 @@ def _select(batch: CandidateBatch, scores: list[torch.Tensor], top_k: int) -> Se
     group = next(i for i, c in enumerate(torch.tensor(sizes).cumsum(0).tolist()) if best < c)
     row = best - sum(sizes[:group])
     skeleton, attention, subgoals = batch.candidate(group, row)
-    per_sequence = []
+    starts = torch.tensor(sizes).cumsum(0) - torch.tensor(sizes)
+    per_sequence, best_of = [], []
     for si, s in enumerate(batch.sequences):
-        mine = flat[seq == si]
+        mask = seq == si
+        mine = flat[mask]
         top = mine.topk(min(top_k, mine.numel())).values.tolist() if mine.numel() else []
         per_sequence.append({"skills": list(s), "score": top[0] if top else 0.0, "top_scores": top, "samples": int(mine.numel())})
-    return SearchResult(skeleton, attention, subgoals, float(flat[best]), per_sequence, 0, 0)
+        if not mine.numel():
+            best_of.append(None)
+            continue
+        index = int(mask.nonzero()[int(torch.argmax(mine))])  # first maximum within the sequence
+        g = int((index >= starts).sum()) - 1
+        best_of.append((*batch.candidate(g, index - int(starts[g])), float(flat[index])))
+    return SearchResult(skeleton, attention, subgoals, float(flat[best]), per_sequence, 0, 0, best=best_of)

@@ -35,7 +35,7 @@ def test_wrong_type_names_the_key():
 
 
 def test_unknown_group_choice_lists_known_planners():
-    with pytest.raises(PluginNotFoundError, match="unknown planner 'beam'; known planners: exhaustive, receding_horizon, sampling"):
+    with pytest.raises(PluginNotFoundError, match="unknown planner 'beam'; known planners: exhaustive, prefix_beam, receding_horizon, sampling"):
         load_config(["planner=beam"])
 
 

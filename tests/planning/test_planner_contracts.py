@@ -25,3 +25,8 @@ class TestSampling(PlannerContract):
 class TestRecedingHorizon(PlannerContract):
     planner_name = "receding_horizon"
     planner_overrides = {**FAST, "num_samples": 128, "window": 3}
+
+
+class TestPrefixBeam(PlannerContract):
+    planner_name = "prefix_beam"
+    planner_overrides = {**FAST, "num_samples": 128}

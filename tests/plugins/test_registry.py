@@ -6,7 +6,7 @@ from pasta.plugins.analytic import AnalyticPlugin, MoveSkill
 from pasta.plugins.registry import discover
 
 BUILTIN_SKILLS = {"cut": (1, 2, "knife"), "push": (1, 1, "pusher"), "roll": (1, 1, "roller")}
-BUILTIN_PLANNERS = {"exhaustive", "receding_horizon", "sampling"}
+BUILTIN_PLANNERS = {"exhaustive", "prefix_beam", "receding_horizon", "sampling"}
 
 
 def test_builtins_are_registered_through_entry_points():

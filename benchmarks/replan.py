@@ -1,0 +1,78 @@
+"""Plan (no execution) task instances with one or more planners and print the plan objective side by side.
+
+    python benchmarks/replan.py --task crs --horizon 6 --seeds 1000 1001 1002 \
+        --planner prefix_beam --planner "exhaustive planner.max_horizon=6" [--skeleton false] \
+        [--reference docs/results/crs_pasta_h6.jsonl]
+
+Each ``--planner`` is a planner name followed by ``planner.KEY=VALUE`` overrides. The problem is built as
+``pasta eval`` builds it (shipped weights, the task's skills with weights, the episode seed), so the
+scores are the ``plan_score`` an evaluation would record. ``--reference`` adds the ``plan_score`` /
+``plan_s`` / skeleton of an earlier evaluation's rows for the same seeds (what was measured then).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+
+def main(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--task", default="crs")
+    ap.add_argument("--horizon", type=int, default=0)
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1000])
+    ap.add_argument("--planner", action="append", default=[], help='"NAME planner.k=v ..." (repeatable)')
+    ap.add_argument("--skeleton", default="false")
+    ap.add_argument("--reference", default="")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--json", default="", help="also write the rows here (JSON lines)")
+    args = ap.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(args.threads)
+    from pasta.execute.pipeline import plan_from_clouds
+    from pasta.execute.session import build_session
+
+    ref = {}
+    if args.reference:
+        for line in Path(args.reference).read_text().splitlines():
+            if line.strip():
+                row = json.loads(line)
+                ref[int(row["seed"])] = row
+    planners = args.planner or ["prefix_beam"]
+    sessions = []
+    for spec in planners:
+        name, *over = spec.split()
+        sessions.append((spec, build_session(args.task, config_overrides=[f"planner={name}", *over],
+                                             horizon=args.horizon or None, skeleton=args.skeleton)))
+    sim = sessions[0][1].task.make_sim()
+    print(f"| seed | planner | plan score | plan s | skeleton |")
+    print("|---:|---|---:|---:|---|")
+    rows = []
+    for seed in args.seeds:
+        if seed in ref:
+            r = ref[seed]
+            print(f"| {seed} | reference ({Path(args.reference).stem}) | {r['plan_score']:.4f} | {r['plan_s']:.1f} | "
+                  f"{'-'.join(r['skeleton'])} |", flush=True)
+        for spec, session in sessions:
+            inst = session.task.instance(seed)
+            sim.set_state(inst.init)
+            skeleton = tuple(inst.skeleton[: session.horizon]) if session.use_skeleton else None
+            t0 = time.perf_counter()
+            plan = plan_from_clouds(sim.observe().dough, inst.goal, planner=session.planner, skills=session.skills,
+                                    encoder=session.encoder, cost=session.cost, horizon=session.horizon, seed=seed,
+                                    skeleton=skeleton, min_points=session.exe.min_points)
+            wall = time.perf_counter() - t0
+            print(f"| {seed} | {spec} | {plan.score:.4f} | {wall:.1f} | {'-'.join(plan.skills)} |", flush=True)
+            rows.append({"seed": seed, "planner": spec, "score": plan.score, "plan_s": wall, "skeleton": list(plan.skills),
+                         "horizon": session.horizon, "task": args.task})
+    if args.json:
+        Path(args.json).write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

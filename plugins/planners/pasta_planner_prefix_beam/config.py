@@ -1,0 +1,34 @@
+"""Settings of the 'prefix_beam' planner."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pasta.planning import HalvingConfig
+
+
+@dataclass
+class PrefixBeamConfig(HalvingConfig):
+    """beam search over skill prefixes (warm-started one-step searches), then the shared optimiser on the best full sequences."""
+
+    width: int = 3  # prefixes kept per depth and entity count
+    # steps re-optimised when a prefix is extended: the last `window` steps, from the set the parent reached
+    # before them (1: only the new step, from the parent's end set)
+    window: int = 2
+    final: int = 6  # complete sequences optimised jointly at the end (num_samples / iterations as above)
+    prefix_samples: int = 16  # samples of each one-step prefix search
+    prefix_iterations: int = 30  # iterations of each one-step prefix search
+    # as exhaustive's: 0: only sequences of the problem's horizon H; N > 0: every complete sequence of
+    # 1..N steps is a candidate (ignored when the problem gives a skeleton)
+    max_horizon: int = 0
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        from pasta.config.validate import check_int
+
+        check_int(self.width, "planner.width", low=1)
+        check_int(self.final, "planner.final", low=1)
+        check_int(self.window, "planner.window", low=1)
+        check_int(self.prefix_samples, "planner.prefix_samples", low=1)
+        check_int(self.prefix_iterations, "planner.prefix_iterations", low=0)
+        check_int(self.max_horizon, "planner.max_horizon", low=0)

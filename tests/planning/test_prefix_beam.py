@@ -1,0 +1,73 @@
+"""The prefix_beam planner: horizons, cardinality pruning, bounded work per depth, config checks."""
+
+from __future__ import annotations
+
+import pytest
+
+from pasta.config import load_config
+from pasta.core import check_skeleton
+from pasta.core.errors import ConfigError
+from pasta.plugins import get_plugins
+from pasta.plugins.analytic import analytic_problem
+from pasta.plugins.checks import configured
+
+SMALL = {"num_samples": 16, "iterations": 20, "prefix_samples": 8, "prefix_iterations": 10}
+
+
+def _planner(**over):
+    return configured(get_plugins().planners, "prefix_beam", {**SMALL, **over})
+
+
+def _specs(problem):
+    return [s.spec for s in problem.skills]
+
+
+def test_default_plans_exactly_h_steps_and_only_consistent_sequences():
+    problem = analytic_problem(horizon=4)
+    plan = _planner().plan(problem)
+    assert len(plan.skills) == 4, plan.skills
+    for row in plan.info["per_sequence"]:  # the complete sequences the final search optimised
+        assert len(row["skills"]) == 4
+        check_skeleton(row["skills"], _specs(problem), 1, 2)  # raises if cardinality-inconsistent
+
+
+def test_max_horizon_considers_every_length_up_to_n():
+    problem = analytic_problem(horizon=3)
+    plan = _planner(final=50, max_horizon=4).plan(problem)
+    lengths = {len(row["skills"]) for row in plan.info["per_sequence"]}
+    assert lengths <= {1, 2, 3, 4} and len(lengths) > 1, lengths
+    for row in plan.info["per_sequence"]:
+        check_skeleton(row["skills"], _specs(problem), 1, 2)
+    assert 1 <= len(plan.skills) <= 4
+
+
+def test_work_per_depth_is_bounded_by_width_counts_and_skills():
+    problem = analytic_problem(horizon=5)
+    width = 2
+    plan = _planner(width=width, max_horizon=5).plan(problem)
+    stages = plan.info["beam"]["stages"]
+    assert [s["depth"] for s in stages] == [1, 2, 3, 4, 5]
+    n_skills = len(problem.skills)
+    for prev, stage in zip(stages, stages[1:]):
+        # every kept prefix of the previous depth is extended by at most every skill
+        assert stage["expanded"] <= len(prev["kept"]) * n_skills
+    for stage in stages:
+        counts = {}
+        for skills in stage["kept"]:
+            k = 1 + sum(s.delta for s in _specs(problem) for name in skills if s.name == name)
+            counts[k] = counts.get(k, 0) + 1
+        assert all(v <= width for v in counts.values()), counts  # at most `width` per entity count
+    assert plan.info["beam"]["prefixes"] == sum(s["expanded"] for s in stages)
+    assert plan.info["beam"]["prefix_searches"] == sum(s["searches"] for s in stages) <= sum(len(s["kept"]) for s in stages)
+
+
+def test_same_seed_same_plan():
+    a = _planner().plan(analytic_problem(seed=3))
+    b = _planner().plan(analytic_problem(seed=3))
+    assert a.to_json(timings=False) == b.to_json(timings=False)
+
+
+@pytest.mark.parametrize("key", ["width", "final", "window", "prefix_samples", "max_horizon"])
+def test_bad_settings_name_the_key(key):
+    with pytest.raises(ConfigError, match=f"planner.{key}"):
+        load_config(["planner=prefix_beam", f"planner.{key}={-1 if key == 'max_horizon' else 0}"])
