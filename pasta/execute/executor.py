@@ -74,6 +74,9 @@ class ExecuteConfig:
             band, :attr:`~pasta.core.Skill.sweep_half_width`) through another observed piece and the
             later step does not depend on it (it consumes nothing the skipped steps produce); see
             :func:`sweep_risk`. The plan's latent states do not change, only the order.
+        unchanged_threshold: an observed entity within this Chamfer distance of a goal entity already is
+            that goal piece: the planner never attends it and matches it to that piece in the set cost
+            (:func:`pasta.core.matching.unchanged_pairs`, ``PlanningProblem.fixed``; 0 disables).
         emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
         log_every: log the dough cloud every this many env steps (actions are always logged).
     """
@@ -90,6 +93,7 @@ class ExecuteConfig:
     goal_anchor: bool = True
     retries: int = 1
     reorder: bool = True
+    unchanged_threshold: float = 5e-4
     emd_points: int = 500
     emd_seed: int = 0
     log_every: int = 1
@@ -99,6 +103,8 @@ class ExecuteConfig:
             raise ConfigError(f"execute.controller must be 'learned' or 'heuristic', got {self.controller!r}")
         if self.max_steps < 0 or self.idle_steps < 0 or self.min_points < 1 or self.decode_points < 1:
             raise ConfigError("execute: min_points, decode_points must be >= 1, max_steps and idle_steps >= 0")
+        if not self.unchanged_threshold >= 0:  # also NaN
+            raise ConfigError(f"execute.unchanged_threshold must be >= 0, got {self.unchanged_threshold}")
 
 
 @dataclass
