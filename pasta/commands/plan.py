@@ -217,8 +217,12 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
             u = encoder.encode(torch.from_numpy(np.stack(ents))).float()
             latents[name] = check_latents(u, f"the {len(ents)} encoded {name} entities (encoder {cfg.encoder.name!r})",
                                           dim=encoder.latent_dim)
+    # observed pieces that already are a goal piece (Chamfer < 5e-4): never attended, matched to it
+    from pasta.core.matching import unchanged_pairs
+
+    fixed = unchanged_pairs(np.stack(entities["obs"]), np.stack(entities["goal"]))
     problem = PlanningProblem(latents["obs"], latents["goal"], skills, encoder, cost, horizon=opts["horizon"],
-                              seed=seed, skeleton=skeleton)
+                              seed=seed, skeleton=skeleton, fixed=tuple(fixed))
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     plan = planner.plan(problem).check()  # a NaN or out-of-range score/latent is an error, not a plan
     text = plan.to_json()

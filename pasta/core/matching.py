@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import itertools
 from functools import lru_cache
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from pasta.core.errors import InputError
 
@@ -56,3 +56,36 @@ def min_cost_matching(cost: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
 @lru_cache(maxsize=64)
 def _assignments(k: int, g: int) -> tuple[tuple[int, ...], ...]:
     return tuple(itertools.permutations(range(g), k))
+
+
+#: Chamfer distance below which an observed entity counts as its goal entity, unchanged (the same
+#: threshold labels "unchanged" entities in the feasibility training data, pasta.train.feasibility).
+UNCHANGED_THRESHOLD = 5e-4
+
+
+def unchanged_pairs(a: Any, b: Any, *, threshold: float = UNCHANGED_THRESHOLD, points: int = 200) -> list[tuple[int, int]]:
+    """Pairs ``(i, j)`` of entities of ``a (Ka, P, 3)`` and ``b (Kb, Q, 3)`` that are the same piece, unchanged.
+
+    Pairs are taken greedily, closest first, while their Chamfer distance (:func:`pasta.core.metrics.chamfer`,
+    on the first ``points`` points of each cloud) is below ``threshold``; each entity is used at most once.
+    ``threshold <= 0`` matches nothing. Returns the pairs sorted by ``i``.
+    """
+    import numpy as np
+
+    from pasta.core.metrics import chamfer
+
+    if threshold <= 0 or len(a) == 0 or len(b) == 0:
+        return []
+    a = np.asarray(a, np.float32)[:, :points]
+    b = np.asarray(b, np.float32)[:, :points]
+    d = np.asarray(chamfer(a[:, None], b[None]))  # (Ka, Kb)
+    used_a, used_b, out = set(), set(), []
+    for flat in np.argsort(d, axis=None, kind="stable"):
+        i, j = (int(x) for x in np.unravel_index(flat, d.shape))
+        if d[i, j] >= threshold:
+            break
+        if i not in used_a and j not in used_b:
+            used_a.add(i)
+            used_b.add(j)
+            out.append((i, j))
+    return sorted(out)

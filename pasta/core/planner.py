@@ -33,6 +33,10 @@ class PlanningProblem:
         horizon: number of skill steps ``H``.
         seed: random seed; the same seed must give the same plan.
         skeleton: optional fixed skill sequence (names) of length ``H``.
+        fixed: pairs ``(i, j)``: observed entity ``i`` already is goal entity ``j``, unchanged (e.g.
+            :func:`pasta.core.matching.unchanged_pairs` on the two clouds' entities). The shared search
+            never attends such an entity and matches it to its goal entity in the set cost; each index
+            appears at most once. Empty: no entity is known to be in place.
     """
 
     obs: torch.Tensor
@@ -43,6 +47,7 @@ class PlanningProblem:
     horizon: int
     seed: int = 0
     skeleton: tuple[str, ...] | None = None
+    fixed: tuple[tuple[int, int], ...] = ()
 
     def __post_init__(self) -> None:
         dim = self.encoder.latent_dim
@@ -52,6 +57,12 @@ class PlanningProblem:
             raise InputError(f"need at least one observed and one goal entity, got {len(self.obs)} and {len(self.goal)}")
         if not isinstance(self.horizon, int) or self.horizon < 1:
             raise InputError(f"horizon must be an integer >= 1, got {self.horizon!r}")
+        self.fixed = tuple(sorted((int(i), int(j)) for i, j in self.fixed))
+        rows, cols = [i for i, _ in self.fixed], [j for _, j in self.fixed]
+        if (len(set(rows)) != len(rows) or len(set(cols)) != len(cols)
+                or any(not 0 <= i < len(self.obs) for i in rows) or any(not 0 <= j < len(self.goal) for j in cols)):
+            raise InputError(f"fixed must pair distinct observed entities (0..{len(self.obs) - 1}) with distinct goal "
+                             f"entities (0..{len(self.goal) - 1}), got {list(self.fixed)}")
         names = [s.name for s in self.skills]
         if not names or len(set(names)) != len(names):
             raise InputError(f"skills must be a non-empty list of distinct skills, got {names}")

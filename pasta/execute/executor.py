@@ -79,6 +79,9 @@ class ExecuteConfig:
             goal, docs/policies.md), ``"all"`` or ``"off"``. It ends a step once the attended piece,
             having come at least halfway to the step's goal (Chamfer), moves away from it again by more
             than ``regress_rise`` of its best distance for 3 env steps.
+        unchanged_threshold: an observed entity within this Chamfer distance of a goal entity already is
+            that goal piece: the planner never attends it and matches it to that piece in the set cost
+            (:func:`pasta.core.matching.unchanged_pairs`, ``PlanningProblem.fixed``; 0 disables).
         emd_points: points per cloud of the EMD score; ``emd_seed`` its sampling seed.
         log_every: log the dough cloud every this many env steps (actions are always logged).
     """
@@ -97,6 +100,7 @@ class ExecuteConfig:
     reorder: bool = True
     regress_stop: str = "learned"
     regress_rise: float = 0.5
+    unchanged_threshold: float = 5e-4
     emd_points: int = 500
     emd_seed: int = 0
     log_every: int = 1
@@ -110,6 +114,8 @@ class ExecuteConfig:
             raise ConfigError(f"execute.regress_stop must be 'learned', 'all' or 'off', got {self.regress_stop!r}")
         if not self.regress_rise > 0:
             raise ConfigError(f"execute.regress_rise must be a number > 0, got {self.regress_rise!r}")
+        if not self.unchanged_threshold >= 0:  # also NaN
+            raise ConfigError(f"execute.unchanged_threshold must be >= 0, got {self.unchanged_threshold}")
 
     def regression_stop(self) -> Any:
         """The :class:`~pasta.tasks.executor.RegressionStop` that watches this config's controller, or ``None``."""

@@ -41,14 +41,22 @@ def perceive(points: np.ndarray, encoder: Any, *, min_points: int = 50, num_poin
 
 def plan_from_clouds(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills: Sequence[Any], encoder: Any,
                      cost: Any, horizon: int, seed: int = 0, skeleton: Sequence[str] | None = None,
-                     min_points: int = 50, num_points: int = 1000) -> Plan:
-    """Perceive ``obs (P, 3)`` and ``goal (G, 3)`` and plan ``horizon`` steps with ``planner``."""
+                     min_points: int = 50, num_points: int = 1000, unchanged_threshold: float = 5e-4) -> Plan:
+    """Perceive ``obs (P, 3)`` and ``goal (G, 3)`` and plan ``horizon`` steps with ``planner``.
+
+    Observed entities within ``unchanged_threshold`` (Chamfer) of a goal entity are that goal piece
+    already (``PlanningProblem.fixed``: never attended, matched to it; 0 disables).
+    """
+    from pasta.core.matching import unchanged_pairs
     from pasta.core.planner import PlanningProblem
 
-    _, u_obs = perceive(obs, encoder, min_points=min_points, num_points=num_points, seed=seed)
-    _, u_goal = perceive(goal, encoder, min_points=min_points, num_points=num_points, seed=seed)
+    e_obs, u_obs = perceive(obs, encoder, min_points=min_points, num_points=num_points, seed=seed)
+    e_goal, u_goal = perceive(goal, encoder, min_points=min_points, num_points=num_points, seed=seed)
+    scene = getattr(encoder, "scope", "entity") == "scene"  # Flat 3D: one entity, nothing to keep apart
+    fixed = () if scene else unchanged_pairs(np.stack(e_obs), np.stack(e_goal), threshold=unchanged_threshold)
     problem = PlanningProblem(obs=u_obs, goal=u_goal, skills=list(skills), encoder=encoder, cost=cost,
-                              horizon=horizon, seed=seed, skeleton=tuple(skeleton) if skeleton else None)
+                              horizon=horizon, seed=seed, skeleton=tuple(skeleton) if skeleton else None,
+                              fixed=tuple(fixed))
     return planner.plan(problem)
 
 
@@ -65,7 +73,8 @@ def run_episode(sim: Any, goal: np.ndarray, *, planner: Any, skills: Sequence[An
                 cfg: ExecuteConfig | None = None, logger: Any = None) -> Episode:
     """Plan from ``sim``'s current observation to ``goal (G, 3)`` and execute (see :func:`execute_plan`)."""
     cfg = cfg or ExecuteConfig()
-    kw = dict(planner=planner, skills=skills, encoder=encoder, cost=cost, seed=seed, min_points=cfg.min_points)
+    kw = dict(planner=planner, skills=skills, encoder=encoder, cost=cost, seed=seed, min_points=cfg.min_points,
+              unchanged_threshold=cfg.unchanged_threshold)
     plan = plan_from_clouds(sim.observe().dough, goal, horizon=horizon, skeleton=skeleton, **kw)
 
     def replan(dough: np.ndarray, steps_left: int) -> Plan:

@@ -34,6 +34,7 @@ class Group:
         inputs: per step ``h``, ``(B, N_h)`` indices (sorted) of the consumed entities.
         kept: per step ``h``, ``(B, K_h - N_h)`` indices (sorted) of the untouched entities.
         latents: ``(B, sum_h M_h, D)`` the produced entities of all steps, step after step.
+        fixed_pos: ``(B, F)`` where each fixed entity (:attr:`CandidateBatch.fixed`) ends in the final set.
     """
 
     signature: tuple[tuple[int, int], ...]
@@ -41,6 +42,7 @@ class Group:
     inputs: list[torch.Tensor]
     kept: list[torch.Tensor]
     latents: torch.Tensor
+    fixed_pos: torch.Tensor | None = None
 
     @property
     def size(self) -> int:
@@ -66,6 +68,7 @@ class Group:
             [i[index] for i in self.inputs],
             [k[index] for k in self.kept],
             self.latents[index] if latents is None else latents,
+            None if self.fixed_pos is None else self.fixed_pos[index],
         )
 
 
@@ -80,6 +83,8 @@ class CandidateBatch:
         skill_ids: per sequence, the index of each step's skill in :attr:`skill_names`.
         skill_names: the skills the sequences use, in first-use order.
         groups: samples grouped by cardinality signature.
+        fixed: pairs ``(start row, goal index)`` of entities already at their goal entity: never attended,
+            matched to that goal entity in the set cost (:class:`pasta.core.PlanningProblem`, ``fixed``).
     """
 
     start: torch.Tensor
@@ -88,6 +93,7 @@ class CandidateBatch:
     skill_names: list[str]
     groups: list[Group]
     skill_ids: list[tuple[int, ...]] = field(default_factory=list)
+    fixed: tuple[tuple[int, int], ...] = ()
 
     def __post_init__(self) -> None:
         if not self.skill_ids:
@@ -121,16 +127,21 @@ def sample_candidates(
     encoder: Encoder,
     num_samples: int,
     generator: torch.Generator,
+    fixed: Sequence[tuple[int, int]] = (),
 ) -> CandidateBatch:
     """Draw ``num_samples`` candidates per sequence: random attention per sample and step, prior latents.
 
     Draw order (hence the result for a seed) is fixed: sequence after sequence, for each the attention of
-    every step and then the latents.
+    every step and then the latents. Without ``fixed`` entities the draws are what they were before
+    ``fixed`` existed (same plans for the same seed).
 
     Args:
         start: ``(K_0, D)`` the set to start from.
         goal: ``(G, D)``.
-        sequences: skill-name sequences; each must have enough entities to consume at every step.
+        sequences: skill-name sequences; each must have enough entities to consume at every step (not
+            counting the fixed ones: :func:`free_feasible`).
+        fixed: pairs ``(start row, goal index)``: those start entities are never attended, so the attention
+            is drawn among the other ``K_h - F`` entities only, whatever the number of fixed ones.
     """
     if num_samples < 1:
         raise InputError(f"num_samples must be >= 1, got {num_samples}")
@@ -141,21 +152,30 @@ def sample_candidates(
     for s in sequences:
         names.extend(n for n in s if n not in names)
     dim = start.shape[-1]
-    parts: dict[tuple[tuple[int, int], ...], list[tuple[int, list[torch.Tensor], list[torch.Tensor], torch.Tensor]]] = {}
+    fixed = tuple((int(i), int(j)) for i, j in fixed)
+    n_fixed = len(fixed)
+    parts: dict[tuple[tuple[int, int], ...], list[tuple]] = {}
     for si, seq in enumerate(sequences):
         sig = signature_of(seq, skills)
         k = start.shape[0]
         inputs, kept = [], []
+        pos = torch.tensor([i for i, _ in fixed], dtype=torch.long).expand(num_samples, -1).contiguous()  # (B, F)
         for n, m in sig:
-            if k < n:
-                raise InputError(f"sequence {list(seq)} consumes {n} entities from a set of {k}")
-            perm = torch.rand(num_samples, k, generator=generator).argsort(dim=1)
+            if k - n_fixed < n:
+                extra = f" ({n_fixed} of them fixed)" if n_fixed else ""
+                raise InputError(f"sequence {list(seq)} consumes {n} entities from a set of {k}{extra}")
+            key = torch.rand(num_samples, k, generator=generator)
+            if n_fixed:  # fixed entities sort last: never among the n consumed
+                key = key + 2.0 * torch.zeros(num_samples, k).scatter_(1, pos, 1.0)
+            perm = key.argsort(dim=1)
             inputs.append(perm[:, :n].sort(dim=1).values)
             kept.append(perm[:, n:].sort(dim=1).values)
+            if n_fixed:  # the next set is [new (m), kept...]: a kept entity moves to m + its rank among the kept
+                pos = m + torch.searchsorted(kept[-1], pos)
             k += m - n
         total = sum(m for _, m in sig)
         lat = encoder.sample_prior(num_samples * total, generator).to(start.dtype).reshape(num_samples, total, dim)
-        parts.setdefault(sig, []).append((si, inputs, kept, encoder.clamp(lat)))
+        parts.setdefault(sig, []).append((si, inputs, kept, encoder.clamp(lat), pos))
     groups = []
     for sig, items in parts.items():
         groups.append(
@@ -165,9 +185,20 @@ def sample_candidates(
                 [torch.cat([it[1][h] for it in items]) for h in range(len(sig))],
                 [torch.cat([it[2][h] for it in items]) for h in range(len(sig))],
                 torch.cat([it[3] for it in items]),
+                torch.cat([it[4] for it in items]) if n_fixed else None,
             )
         )
-    return CandidateBatch(start, goal, sequences, names, groups)
+    return CandidateBatch(start, goal, sequences, names, groups, fixed=fixed)
+
+
+def free_feasible(sequence: Sequence[str], skills: Mapping[str, Skill], start_size: int, num_fixed: int) -> bool:
+    """Whether ``sequence`` can run on the ``start_size - num_fixed`` entities that are not fixed."""
+    k = start_size - num_fixed
+    for n, m in signature_of(sequence, skills):
+        if k < n:
+            return False
+        k += m - n
+    return True
 
 
 @dataclass
@@ -304,8 +335,19 @@ def set_costs(
     *,
     frozen: FrozenMatching | None = None,
 ) -> tuple[list[torch.Tensor], FrozenMatching]:
-    """Per group, ``(B,)`` cost of the final sets against the goal (see :func:`evaluate`), and the matching used."""
+    """Per group, ``(B,)`` cost of the final sets against the goal (see :func:`evaluate`), and the matching used.
+
+    With fixed entities (:attr:`CandidateBatch.fixed`) each is matched to its own goal entity and only the
+    other entities are matched by cost (:func:`fixed_matching`).
+    """
     g_goal = batch.goal.shape[0]
+    if frozen is None and batch.fixed:
+        rows, cols = [], []
+        for grp, f in zip(batch.groups, finals):
+            r, c = fixed_matching(f, batch.goal, grp.fixed_pos, [j for _, j in batch.fixed], cost_model)
+            rows.append(r)
+            cols.append(c)
+        return set_costs(batch, finals, cost_model, frozen=FrozenMatching(rows, cols))
     if frozen is not None:  # only the matched pairs, all groups in one call
         a = [_take(f, r) for f, r in zip(finals, frozen.rows)]
         b = [batch.goal[c] for c in frozen.cols]
@@ -331,3 +373,39 @@ def set_costs(
             ident = torch.arange(a.shape[1]).expand(a.shape[0], -1).contiguous()
             rows[g], cols[g] = (ident, a) if k <= g_goal else (a, ident)
     return out, FrozenMatching(rows, cols)
+
+
+def fixed_matching(final: torch.Tensor, goal: torch.Tensor, fixed_pos: torch.Tensor, fixed_goal: Sequence[int],
+                   cost_model: CostModel) -> tuple[torch.Tensor, torch.Tensor]:
+    """The set-cost matching when some final entities are known to be some goal entities.
+
+    Args:
+        final: ``(B, K, D)`` final sets; goal: ``(G, D)``.
+        fixed_pos: ``(B, F)`` positions in ``final`` of the fixed entities; fixed_goal: their ``F`` goal indices.
+
+    Returns:
+        ``(rows, cols)``, each ``(B, min(K, G))``: the fixed pairs, plus the minimum-cost matching
+        (:func:`pasta.core.matching.min_cost_matching`, on the cost model's pairwise costs) of the
+        ``K - F`` other final entities to the ``G - F`` other goal entities. The cost model is not asked
+        about any pair that involves a fixed entity, so the matching work does not grow with ``F``.
+    """
+    b, k, _ = final.shape
+    f = len(fixed_goal)
+    taken = torch.zeros(b, k, dtype=torch.long).scatter_(1, fixed_pos, 1)
+    free_pos = torch.argsort(taken, dim=1, stable=True)[:, : k - f]  # (B, K - F), ascending
+    gset = set(int(j) for j in fixed_goal)
+    free_goal = torch.tensor([j for j in range(goal.shape[0]) if j not in gset], dtype=torch.long)
+    kf, gf = k - f, free_goal.shape[0]
+    with torch.no_grad():
+        if kf == 0 or gf == 0:
+            c = final.new_zeros(b, kf, gf)
+        else:
+            c = cost_model.pairwise(_take(final, free_pos), goal[free_goal].unsqueeze(0).expand(b, -1, -1))  # (B, kf, gf)
+        if kf <= gf:
+            _, assign = min_cost_matching(c)
+            rows, cols = free_pos, free_goal[assign]
+        else:
+            _, assign = min_cost_matching(c.transpose(1, 2))
+            rows, cols = free_pos.gather(1, assign), free_goal.expand(b, -1)
+    fixed_cols = torch.tensor([int(j) for j in fixed_goal], dtype=torch.long).expand(b, -1)
+    return torch.cat([rows, fixed_pos], 1), torch.cat([cols, fixed_cols], 1)

@@ -59,8 +59,10 @@ def rollout(
     feas, states = [], []
     penalty = state.new_zeros(batch)
     ext = clearance.start_extent.to(state.dtype).unsqueeze(0).expand(batch, -1, -1) if clearance is not None else None
+    origin: list[int | None] = list(range(state.shape[1]))  # which observed entity each position still is
     for name, inputs, new in zip(skeleton, attention, subgoals):
         inputs, kept = list(inputs), list(kept_indices(state.shape[1], inputs))
+        origin = [None] * new.shape[1] + [origin[i] for i in kept]
         feas.append(skills[name].feasibility(state[:, inputs], new))
         if clearance is not None:
             sweep = state.new_full((batch,), clearance.sweep.get(name, 0.0))
@@ -68,8 +70,26 @@ def rollout(
             penalty = penalty + p
         state = torch.cat([new, state[:, kept]], 1)
         states.append(state)
-    goal = problem.goal.unsqueeze(0).expand(batch, -1, -1)
-    return Rollout(torch.stack(feas, -1), states, problem.cost.set_cost(state, goal), penalty)
+    return Rollout(torch.stack(feas, -1), states, final_set_cost(problem, state, origin), penalty)
+
+
+def final_set_cost(problem: PlanningProblem, state: torch.Tensor, origin: Sequence[int | None]) -> torch.Tensor:
+    """``(B,)`` set cost of ``state (B, K, D)`` against the goal; ``origin[p]``: the observed entity at position
+    ``p`` if it was never consumed. A fixed entity (``problem.fixed``) still there is matched to its own goal
+    entity (:func:`pasta.planning.batch.fixed_matching`), as the shared search does."""
+    at = {o: p for p, o in enumerate(origin) if o is not None}
+    pairs = [(at[i], j) for i, j in problem.fixed if i in at]
+    goal = problem.goal.unsqueeze(0).expand(state.shape[0], -1, -1)
+    if not pairs:
+        return problem.cost.set_cost(state, goal)
+    from pasta.planning.batch import fixed_matching
+
+    pos = torch.tensor([p for p, _ in pairs], dtype=torch.long).expand(state.shape[0], -1)
+    rows, cols = fixed_matching(state, problem.goal, pos, [j for _, j in pairs], problem.cost)
+    a = state.gather(1, rows[:, :, None].expand(-1, -1, state.shape[-1]))
+    b = problem.goal[cols]
+    d = a.shape[-1]
+    return problem.cost.pairwise(a.reshape(-1, 1, d), b.reshape(-1, 1, d)).reshape(a.shape[0], a.shape[1]).sum(1)
 
 
 def build_plan(

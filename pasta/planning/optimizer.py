@@ -22,7 +22,7 @@ import torch
 
 from pasta.core import PlanningProblem
 from pasta.core.errors import ConfigError
-from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, sample_candidates
+from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, free_feasible, sample_candidates
 from pasta.planning.clearance import Clearance
 from pasta.planning.config import LatentPlannerConfig
 from pasta.planning.objective import log_objective, plan_objective, plan_score
@@ -45,6 +45,8 @@ class SearchResult:
         timings: seconds spent drawing candidates (``sample``) and optimising (``optimise``).
         best: for every sequence (in ``sequences`` order), its best candidate as ``(skeleton, attention,
             subgoals, score)`` (the winner is the best of these); ``None`` for a sequence left without samples.
+        fixed: the ``(start row, goal index)`` pairs kept out of the attention and matched exactly
+            (empty when none were given or no sequence could run without them).
     """
 
     skeleton: tuple[str, ...]
@@ -56,6 +58,7 @@ class SearchResult:
     evaluations: int
     timings: dict[str, float] = field(default_factory=dict)
     best: list[tuple[tuple[str, ...], list[tuple[int, ...]], list[torch.Tensor], float] | None] = field(default_factory=list)
+    fixed: tuple[tuple[int, int], ...] = ()
 
 
 def search(
@@ -68,6 +71,7 @@ def search(
     start: torch.Tensor | None = None,
     elite_fraction: float = 0.1,
     min_std: float = 1e-3,
+    fixed: Sequence[tuple[int, int]] | None = None,
 ) -> SearchResult:
     """Optimise ``config.num_samples`` candidates per sequence and return the best.
 
@@ -78,6 +82,11 @@ def search(
         method: ``"adam"`` or ``"cem"``.
         start: ``(K_0, D)`` set to start from (default ``problem.obs``).
         elite_fraction, min_std: CEM only.
+        fixed: pairs ``(start row, goal index)`` of entities already at their goal entity (default:
+            ``problem.fixed`` when starting from ``problem.obs``, none otherwise). They are never attended
+            and are matched to their goal entities in the set cost, so the attention search is over the
+            other entities only. Sequences that would have to consume a fixed entity are left out; when
+            that leaves none, the search runs without fixed entities.
 
     Returns:
         :class:`SearchResult`: the best candidate's skeleton, attention (per step, the consumed indices)
@@ -92,8 +101,15 @@ def search(
     if config.iterations < 0:
         raise ConfigError(f"planner.iterations must be >= 0, got {config.iterations}")
     t0 = time.perf_counter()
+    if fixed is None:
+        fixed = problem.fixed if start is None else ()
     start = problem.obs if start is None else start
-    batch = sample_candidates(start, problem.goal, sequences, problem.skill_map, problem.encoder, config.num_samples, generator)
+    fixed = tuple(fixed)
+    if fixed:
+        runnable = [s for s in sequences if free_feasible(s, problem.skill_map, start.shape[0], len(fixed))]
+        sequences, fixed = (runnable, fixed) if runnable else (list(sequences), ())
+    batch = sample_candidates(start, problem.goal, sequences, problem.skill_map, problem.encoder, config.num_samples,
+                              generator, fixed=fixed)
     samples = batch.size
     t1 = time.perf_counter()
     clearance = None
@@ -105,6 +121,7 @@ def search(
     result = _select(opt.batch, scores, config.keep_per_sequence)
     result.samples, result.evaluations = samples, opt.evaluations
     result.timings = {"sample": t1 - t0, "optimise": t2 - t1}
+    result.fixed = fixed
     return result
 
 

@@ -47,7 +47,7 @@ class LatentPlanner(Planner):
                             timings={"enumerate": t1 - t0, **result.timings}, info=self.info(sequences, [result]))
 
     def info(self, sequences: Sequence[Sequence[str]], results: Sequence[SearchResult]) -> dict[str, Any]:
-        return {
+        info = {
             "method": self.method,
             "sequences": len(sequences),
             "samples": sum(r.samples for r in results),
@@ -56,6 +56,9 @@ class LatentPlanner(Planner):
             "successive_halving": bool(getattr(self.cfg, "successive_halving", False)) and self.method == "adam",
             "per_sequence": results[-1].per_sequence if len(results) == 1 else [r.per_sequence for r in results],
         }
+        if results and results[0].fixed:  # observed entities kept out of the attention search (at their goal entity)
+            info["fixed"] = [list(p) for p in results[0].fixed]
+        return info
 
     def package(self, problem, skeleton, attention, subgoals, *, timings: dict[str, float], info: dict[str, Any]) -> Plan:
         """Re-evaluate the chosen candidate with :func:`build_plan`; time it as ``select``."""

@@ -70,17 +70,11 @@ def changed_entities(a: torch.Tensor, b: torch.Tensor, *, threshold: float = 5e-
     """Indices of the entities of ``a (Ka, P, 3)`` and ``b (Kb, P, 3)`` left after removing unchanged pairs.
 
     Pairs are removed greedily, closest first, while their Chamfer distance (on the first ``points``
-    points of each cloud) is below ``threshold``.
+    points of each cloud) is below ``threshold`` (:func:`pasta.core.matching.unchanged_pairs`, which the
+    planning pipeline uses to keep such pieces out of the attention search).
     """
-    from pasta.core.metrics import chamfer
+    from pasta.core.matching import unchanged_pairs
 
-    d = chamfer(a[:, None, :points], b[None, :, :points]).numpy()  # (Ka, Kb)
-    keep_a, keep_b = set(range(len(a))), set(range(len(b)))
-    for flat in np.argsort(d, axis=None):
-        i, j = np.unravel_index(flat, d.shape)
-        if d[i, j] >= threshold:
-            break
-        if i in keep_a and j in keep_b:
-            keep_a.discard(int(i))
-            keep_b.discard(int(j))
-    return sorted(keep_a), sorted(keep_b)
+    pairs = unchanged_pairs(a, b, threshold=threshold, points=points)
+    same_a, same_b = {i for i, _ in pairs}, {j for _, j in pairs}
+    return [i for i in range(len(a)) if i not in same_a], [j for j in range(len(b)) if j not in same_b]

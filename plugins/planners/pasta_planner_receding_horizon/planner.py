@@ -39,18 +39,22 @@ class RecedingHorizonPlanner(LatentPlanner):
         subgoals: list[torch.Tensor] = []
         results = []
         state = problem.obs
+        fixed = list(problem.fixed)  # (row in the committed set, goal index): where the fixed entities are now
         horizon = len(full[0])
         for h in range(horizon):
             w = min(int(cfg.window), horizon - h)
             windows = list(dict.fromkeys(s[h : h + w] for s in full if list(s[:h]) == skills))
-            result = search(problem, windows, cfg, gen, method=self.method, start=state)
+            result = search(problem, windows, cfg, gen, method=self.method, start=state, fixed=fixed)
             for key in ("sample", "optimise"):
                 timings[key] += result.timings[key]
             results.append(result)
             skills.append(result.skeleton[0])
             attention.append(result.attention[0])
             subgoals.append(result.subgoals[0])
-            state = torch.cat([result.subgoals[0], state[list(kept_indices(len(state), result.attention[0]))]], 0)
+            kept = list(kept_indices(len(state), result.attention[0]))
+            m = result.subgoals[0].shape[0]
+            fixed = [(m + kept.index(i), j) for i, j in result.fixed]  # a search without them drops them
+            state = torch.cat([result.subgoals[0], state[kept]], 0)
         info = self.info(full, results)
         info["window"] = int(cfg.window)
         info["stages"] = [{"windows": len(r.per_sequence), "committed": skills[i], "score": r.score} for i, r in enumerate(results)]
