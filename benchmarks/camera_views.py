@@ -9,7 +9,10 @@ execution, ``threads=1``, default planner and shipped weights) under each mode:
 
 - ``none``: no preprocessing, default frame (what a user who feeds the camera cloud as it is gets);
 - ``camera``: ``preprocess=camera`` and the frame keys the variant needs (``units=mm``, ``up=z``,
-  ``transform=FILE``).
+  ``transform=FILE``);
+- ``legacy``: no preprocessing and the checks this issue added switched off (``check.box_margin=1
+  check.min_feasibility=0 check.max_cost=1e9``): what ``pasta plan`` did before (the workspace check on
+  the unit cube stays).
 
 A plan is right when its skill sequence is the instance's ground-truth skeleton and, at every step, the
 attended entity is the ground-truth piece: the plan's entities before the step (their centroids ``t``)
@@ -22,7 +25,12 @@ Variants (camera-like: top surface within 3 mm of the highest point of each 5 mm
 ``clean`` full cloud; ``visible`` top surface; ``noise`` visible + 2 mm noise; ``outliers`` visible + 1 %
 outliers; ``table`` visible + the table plane; ``camera`` visible + noise + outliers + table, density
 drawn in 300-3000 per cloud; ``mm`` the camera view in millimetres; ``zup`` in a z-up frame;
-``frame`` in a top-down camera's frame (1.2 m above the table, turned 0.3 rad).
+``frame`` in a top-down camera's frame (1.2 m above the table, turned 0.3 rad); ``kinect`` in that frame
+and in millimetres, as an Azure Kinect writes it.
+
+``--write DIR`` writes the obs and goal clouds of the first seed and variant as binary PLY (and the
+camera's ``frame.txt``) and prints the ``pasta plan`` command for them, without planning (the worked
+example of docs/real_world.md).
 """
 
 from __future__ import annotations
@@ -38,7 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
-VARIANTS = ["clean", "visible", "noise", "outliers", "table", "camera", "mm", "zup", "frame"]
+VARIANTS = ["clean", "visible", "noise", "outliers", "table", "camera", "mm", "zup", "frame", "kinect"]
 
 
 def make_variant(points: np.ndarray, variant: str, rng: np.random.Generator) -> tuple[np.ndarray, list[str]]:
@@ -64,8 +72,37 @@ def make_variant(points: np.ndarray, variant: str, rng: np.random.Generator) -> 
     if variant == "zup":
         return CloudFrame(up="z").from_workspace(cam).astype(np.float32), ["up=z"]
     if variant == "frame":
-        return cam, ["transform=FRAME"]  # written by run_one with the camera's matrix
+        return cam, ["transform=FRAME"]  # moved into the camera's frame by variant_clouds
+    if variant == "kinect":
+        return cam, ["units=mm", "transform=FRAME"]
     raise ValueError(variant)
+
+
+def variant_clouds(instance, variant: str, seed: int) -> tuple[dict[str, np.ndarray], list[str], np.ndarray]:
+    """``({"obs": (Q, 3), "goal": (Q', 3)}, frame keys, the camera's 4x4 camera-to-workspace matrix)``."""
+    from pasta.perception.synthetic import camera_transform
+
+    rng = np.random.default_rng([seed, VARIANTS.index(variant)])
+    frame = camera_transform()
+    # the observed clouds (1,000 points) for the full view; every particle (5,000) for what a camera sees
+    sources = ((("obs", instance.init_points), ("goal", instance.goal)) if variant == "clean"
+               else (("obs", np.asarray(instance.init.x)), ("goal", instance.goal_state)))
+    clouds, keys = {}, []
+    for name, full in sources:
+        cloud, keys = make_variant(np.asarray(full), variant, rng)
+        if variant in ("frame", "kinect"):  # workspace -> camera frame: inverse(T) @ p
+            cloud = (cloud.astype(np.float64) - frame[:3, 3]) @ frame[:3, :3]
+            cloud = (cloud * (1000.0 if variant == "kinect" else 1.0)).astype(np.float32)
+        clouds[name] = cloud
+    return clouds, keys, frame
+
+
+def write_ply(path: Path, points: np.ndarray) -> None:
+    """A binary little-endian PLY of ``points (P, 3)`` float32."""
+    rows = np.ascontiguousarray(points, dtype="<f4")
+    header = (f"ply\nformat binary_little_endian 1.0\nelement vertex {len(rows)}\nproperty float x\n"
+              "property float y\nproperty float z\nend_header\n")
+    path.write_bytes(header.encode() + rows.tobytes())
 
 
 def judge(plan: dict, instance) -> bool:
@@ -96,30 +133,23 @@ def judge(plan: dict, instance) -> bool:
 def run_one(task: str, seed: int, variant: str, mode: str, tmp: Path) -> dict:
     from pasta.commands.plan import plan_files
     from pasta.core.errors import PastaError
-    from pasta.perception.synthetic import camera_transform
     from pasta.tasks import get_task
 
     inst = get_task(task).instance(seed)
-    rng = np.random.default_rng([seed, VARIANTS.index(variant)])
-    clouds, keys = {}, []
-    frame = camera_transform()
-    # the observed clouds (1,000 points) for the full view; every particle (5,000) for what a camera sees
-    sources = ((("obs", inst.init_points), ("goal", inst.goal)) if variant == "clean"
-               else (("obs", np.asarray(inst.init.x)), ("goal", inst.goal_state)))
-    for name, full in sources:
-        cloud, keys = make_variant(np.asarray(full), variant, rng)
-        if variant == "frame":
-            cloud = ((cloud.astype(np.float64) - frame[:3, 3]) @ frame[:3, :3]).astype(np.float32)
+    clouds, keys, frame = variant_clouds(inst, variant, seed)
+    for name, cloud in clouds.items():
         np.save(tmp / f"{name}.npy", cloud)
-        clouds[name] = len(cloud)
     np.save(tmp / "frame.npy", frame)
     keys = [k.replace("FRAME", str(tmp / "frame.npy")) for k in keys]
     args = [f"obs={tmp / 'obs.npy'}", f"goal={tmp / 'goal.npy'}", f"out={tmp / 'plan'}", "threads=1"]
     if mode == "camera":
         args += ["preprocess=camera", *keys]
+    elif mode == "legacy":
+        args += ["check.box_margin=1", "check.min_feasibility=0", "check.max_cost=1e9"]
     err = io.StringIO()
     t0 = time.perf_counter()
-    row = {"task": task, "seed": seed, "variant": variant, "mode": mode, "points": clouds}
+    row = {"task": task, "seed": seed, "variant": variant, "mode": mode,
+           "points": {k: len(v) for k, v in clouds.items()}}
     try:
         with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
             code = plan_files(args)
@@ -160,9 +190,10 @@ def main() -> None:
     parser.add_argument("--task", default="crs")
     parser.add_argument("--seeds", default="1000-1019", help="A-B (inclusive) or a comma-separated list")
     parser.add_argument("--variants", nargs="+", default=["clean", "camera"], choices=VARIANTS)
-    parser.add_argument("--modes", nargs="+", default=["none", "camera"], choices=["none", "camera"])
+    parser.add_argument("--modes", nargs="+", default=["none", "camera"], choices=["none", "camera", "legacy"])
     parser.add_argument("--out", type=Path, default=None, help="append one JSON line per run")
     parser.add_argument("--table", type=Path, nargs="*", default=None, help="only print the table of these files")
+    parser.add_argument("--write", type=Path, default=None, help="write the first seed's variant clouds here, no plan")
     args = parser.parse_args()
     if args.table is not None:
         rows = [json.loads(line) for f in args.table for line in f.read_text().splitlines() if line.strip()]
@@ -173,6 +204,18 @@ def main() -> None:
         seeds = list(range(int(a), int(b) + 1))
     else:
         seeds = [int(s) for s in args.seeds.split(",")]
+    if args.write is not None:
+        from pasta.tasks import get_task
+
+        args.write.mkdir(parents=True, exist_ok=True)
+        clouds, keys, frame = variant_clouds(get_task(args.task).instance(seeds[0]), args.variants[0], seeds[0])
+        for name, cloud in clouds.items():
+            write_ply(args.write / f"{name}.ply", cloud)
+        np.savetxt(args.write / "frame.txt", frame, fmt="%.9f")
+        keys = [k.replace("FRAME", str(args.write / "frame.txt")) for k in keys]
+        print(f"pasta plan obs={args.write / 'obs.ply'} goal={args.write / 'goal.ply'} {' '.join(keys)} "
+              f"preprocess=camera out={args.write / 'plan'} threads=1")
+        return
     rows = []
     for seed in seeds:
         for variant in args.variants:

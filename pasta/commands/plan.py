@@ -63,7 +63,9 @@ COMMAND_KEYS = {
     "check.box_margin": "0.01",  # entity centroids may lie this far (metres) outside the training box
     "check.min_feasibility": "0.5",  # a step below: the plan is flagged unreachable (exit code 3)
     "check.max_cost": "0.01",  # a final set cost above: unreachable (exit code 3)
-    "check.max_z": "3.0",  # |z| above (prior Mahalanobis distance): out of distribution (flag only)
+    # |z| above (Mahalanobis distance under the prior N(0, I)): out of distribution (a warning only); entities
+    # of the validation seeds 2000-2002 (crs, cut_rearrange) reach 2.94 (full clouds) and 3.28 (camera views)
+    "check.max_z": "4.0",
 }
 
 #: exit code of a plan that was written but is flagged unreachable (2 is bad input or config)
