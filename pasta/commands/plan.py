@@ -1,9 +1,16 @@
 """``pasta plan obs=FILE goal=FILE [key=value ...]``: plan from two point-cloud files, no simulator.
 
-Each cloud (``.npy`` ``(P, 3)`` or ASCII ``.ply``) is decomposed into entities
-(:func:`pasta.core.decompose.decompose`), encoded with the configured encoder, and planned with the
-configured planner. Writes ``plan.json`` and, per step ``h``, the decoded sub-goal entities
-``step_{h}_subgoal.npy`` ``(M_h, P, 3)`` to ``out=DIR``.
+Each cloud (``.npy`` ``(P, 3)`` or organised ``(H, W, 3)`` with NaN holes, PLY ascii or binary) is put in
+the workspace frame (``units=``, ``up=``, ``transform=``), optionally preprocessed (``preprocess=camera``
+and ``preprocess.*``: :mod:`pasta.perception`), decomposed into entities
+(:func:`pasta.core.decompose.decompose_labels`, ``decompose.eps`` / ``decompose.min_samples``), encoded
+with the configured encoder, checked against the encoder's box of training centroids, and planned with
+the configured planner. Writes ``plan.json`` (with ``info.confidence`` and ``info.flags``), per step
+``h`` the decoded sub-goal entities ``step_{h}_subgoal.npy`` ``(M_h, P, 3)`` (workspace frame) and, for
+another input frame, ``step_{h}_subgoal_input.npy`` (the input's frame and units), and the per-point
+entity labels ``obs_labels.npy`` / ``goal_labels.npy`` (shaped like the input, ``-1`` for dropped
+points) to ``out=DIR``. Exit codes: 0 a plan, 2 bad input or config, 3 a plan written but flagged
+unreachable (docs/real_world.md).
 
 Hardened against hostile inputs (issue 21): ``out=`` and every command key are checked before anything
 is computed; clouds above ``max_points`` are voxel-downsampled before DBSCAN (whose memory grows with
@@ -22,8 +29,8 @@ from typing import Any
 
 from pasta.core.errors import ConfigError, InputError
 
-HELP = ("plan from an observed and a goal point cloud (.npy or ASCII .ply): obs=FILE goal=FILE [out=DIR] [threads=1] "
-        "[max_points=10000] [planner=NAME ...]")
+HELP = ("plan from an observed and a goal point cloud (.npy or .ply): obs=FILE goal=FILE [out=DIR] [threads=1] "
+        "[max_points=10000] [units=m|mm] [up=y|z] [transform=FILE] [preprocess=none|camera] [planner=NAME ...]")
 
 #: keys of this command (the rest are run-config overrides)
 COMMAND_KEYS = {
@@ -41,7 +48,28 @@ COMMAND_KEYS = {
     "max_points": "10000",
     # torch CPU threads (0: torch's default). 1 as in `pasta run`: 16 s instead of 152 s on a busy machine
     "threads": "1",
+    # the input contract (docs/real_world.md): units, up axis and an optional 4x4 camera-to-workspace matrix
+    "units": "m",
+    "up": "y",
+    "transform": "",
+    # preprocessing (pasta.perception.preprocess): a preset, then single keys over it ("" = the preset's value)
+    "preprocess": "none",
+    **{f"preprocess.{k}": "" for k in ("crop", "table", "table_height", "table_margin", "outliers", "outlier_k",
+                                        "outlier_std", "complete", "fill_spacing")},
+    # DBSCAN of the decomposition (pasta.core.decompose)
+    "decompose.eps": "0.03",
+    "decompose.min_samples": "6",
+    # checks of the contract and of the result (docs/real_world.md, "Confidence and exit codes")
+    "check.box_margin": "0.01",  # entity centroids may lie this far (metres) outside the training box
+    "check.min_feasibility": "0.5",  # a step below: the plan is flagged unreachable (exit code 3)
+    "check.max_cost": "0.01",  # a final set cost above: unreachable (exit code 3)
+    # |z| above (Mahalanobis distance under the prior N(0, I)): out of distribution (a warning only); entities
+    # of the validation seeds 2000-2002 (crs, cut_rearrange) reach 2.94 (full clouds) and 3.28 (camera views)
+    "check.max_z": "4.0",
 }
+
+#: exit code of a plan that was written but is flagged unreachable (2 is bad input or config)
+EXIT_UNREACHABLE = 3
 
 #: ranges of the integer command keys (inclusive): a horizon above 10 enumerates 3**10+ sequences; fewer
 #: than 16 points per entity cannot describe a piece's shape, and more than 10,000 only slow the encoder
@@ -60,7 +88,9 @@ WORKSPACE = (0.0, 1.0)
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("overrides", nargs="*", metavar="key=value",
                         help="obs=FILE goal=FILE out=DIR models=DIR horizon=H (1-10) skills=a,b skeleton=a,b,c "
-                             "num_points=1000 min_points=50 max_points=10000 threads=1, and any config override "
+                             "num_points=1000 min_points=50 max_points=10000 threads=1 units=m|mm up=y|z "
+                             "transform=FILE preprocess=none|camera preprocess.KEY=V decompose.eps=0.03 "
+                             "decompose.min_samples=6 check.KEY=V (docs/real_world.md), and any config override "
                              "(seed=S planner=sampling planner.num_samples=2000 encoder=NAME cost_model=NAME)")
 
 
@@ -81,80 +111,22 @@ def split_arguments(items: list[str]) -> tuple[dict[str, str], list[str]]:
 
 
 def load_cloud(path: str | Path, name: str = "cloud"):
-    """Read a ``(P, 3)`` float32 point cloud from ``.npy`` or ASCII ``.ply``; bad files raise InputError."""
+    """Read a ``(P, 3)`` float32 point cloud from ``.npy`` (``(P, 3)`` or organised ``(H, W, 3)``, whose NaN
+    holes are dropped) or PLY (ascii or binary); bad files raise InputError."""
     import numpy as np
 
     from pasta.core.shapes import check_points
 
-    p = Path(path)
-    if not p.is_file():
-        raise InputError(f"{name} file {str(p)!r} does not exist")
-    suffix = p.suffix.lower()
-    try:
-        if suffix == ".npy":
-            header = np.load(p, mmap_mode="r", allow_pickle=False)  # reads the shape, not the data
-            _check_file_size(len(header) if header.ndim else 0, name, p)
-            del header
-            arr = np.load(p, allow_pickle=False)
-        elif suffix == ".ply":
-            arr = _read_ascii_ply(p, name)
-        else:
-            raise InputError(f"{name} file {str(p)!r}: unsupported extension {suffix!r}; use .npy or ASCII .ply")
-    except InputError:
-        raise
-    except Exception as exc:  # noqa: BLE001 - any parse failure becomes a clear input error
-        raise InputError(f"{name} file {str(p)!r} cannot be read: {exc}") from None
-    arr = np.asarray(arr)
-    if arr.dtype.kind not in "fiu":
-        raise InputError(f"{name} file {str(p)!r} must hold numbers, got dtype {arr.dtype}")
-    check_points(arr, f"{name} cloud {p.name}")
-    return np.ascontiguousarray(arr, dtype=np.float32)
+    loaded = read_cloud(path, name)
+    check_points(loaded.points, f"{name} cloud {Path(path).name}")
+    return np.ascontiguousarray(loaded.points, dtype=np.float32)
 
 
-def _check_file_size(count: int, name: str, path: Path) -> None:
-    if count > MAX_FILE_POINTS:
-        raise InputError(f"{name} file {str(path)!r} has {count:,} points, more than pasta plan reads "
-                         f"({MAX_FILE_POINTS:,}); downsample it first (max_points= bounds what reaches decomposition)")
+def read_cloud(path: str | Path, name: str = "cloud"):
+    """:func:`pasta.perception.read_cloud` with this module's :data:`MAX_FILE_POINTS`."""
+    from pasta.perception import clouds
 
-
-def _read_ascii_ply(path: Path, name: str = "cloud"):
-    import numpy as np
-
-    lines = path.read_text(errors="replace").splitlines()
-    if not lines or lines[0].strip() != "ply":
-        raise InputError(f"{str(path)!r} is not a PLY file (no 'ply' magic line)")
-    count, props, in_vertex, fmt, body = 0, [], False, None, None
-    for i, line in enumerate(lines[1:], 1):
-        words = line.split()
-        if not words:
-            continue
-        if words[0] == "format":
-            fmt = words[1]
-        elif words[0] == "element":
-            in_vertex = words[1] == "vertex"
-            if in_vertex:
-                count = int(words[2])
-                _check_file_size(count, name, path)
-        elif words[0] == "property" and in_vertex:
-            props.append(words[-1])
-        elif words[0] == "end_header":
-            body = i + 1
-            break
-    if fmt != "ascii":
-        raise InputError(f"{str(path)!r}: only ASCII PLY is supported, got format {fmt!r}")
-    if body is None or not {"x", "y", "z"} <= set(props):
-        raise InputError(f"{str(path)!r}: PLY header must declare vertex properties x, y, z")
-    if count == 0:
-        return np.zeros((0, 3))
-    rows = lines[body : body + count]
-    expected = f"{str(path)!r}: expected {count} vertex rows of {len(props)} values"
-    if len(rows) != count:
-        raise InputError(expected)
-    try:  # numpy's C parser: a 1e6-point file without a Python list per row
-        data = np.loadtxt(rows, dtype=np.float64, ndmin=2, usecols=[props.index(c) for c in "xyz"])
-    except ValueError:
-        raise InputError(expected) from None
-    return data.reshape(-1, 3)
+    return clouds.read_cloud(path, name, max_file_points=MAX_FILE_POINTS)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -162,11 +134,13 @@ def run(args: argparse.Namespace) -> int:
 
 
 def plan_files(items: list[str], *, plugins: Any = None) -> int:
-    """Run ``pasta plan`` on ``key=value`` items; return the exit code (errors raise :class:`PastaError`)."""
+    """Run ``pasta plan`` on ``key=value`` items; return the exit code (0, or :data:`EXIT_UNREACHABLE` for a
+    plan written but flagged unreachable; errors raise :class:`PastaError`)."""
     from pasta.config.validate import check_output_dir
 
     mine, overrides = split_arguments(list(items))
     opts = command_options(mine)
+    camera = camera_options(mine)
     out = check_output_dir(mine["out"], "out")  # before anything is computed: a bad out= must not cost a plan
     import numpy as np
     import torch
@@ -175,7 +149,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         torch.set_num_threads(opts["threads"])
     from pasta.config import load_config, section
     from pasta.core import PlanningProblem
-    from pasta.core.decompose import decompose
+    from pasta.core.decompose import decompose_labels, resample
     from pasta.core.shapes import check_latents
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
 
@@ -191,10 +165,12 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     cfg = load_config(overrides, plugins=plugins)
     check_cpu_only(cfg)
     num_points, min_points, seed = opts["num_points"], opts["min_points"], int(cfg.seed)
-    clouds = {}
+    frame = camera["frame"]
+    loaded, clouds, kept, kept_points = {}, {}, {}, {}
     for name in ("obs", "goal"):
-        clouds[name] = prepare_cloud(load_cloud(mine[name], name), name, max_points=opts["max_points"],
-                                     min_points=min_points)
+        loaded[name] = read_cloud(mine[name], name)
+        clouds[name], kept[name], kept_points[name] = prepare_input(loaded[name], name, frame, camera["preprocess"],
+                                                 max_points=opts["max_points"], min_points=min_points)
 
     encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
     cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
@@ -209,14 +185,19 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         from pasta.nn.loading import attach_feasibility
 
         attach_feasibility(needs, root, latent_dim=encoder.latent_dim)
-    entities = {name: decompose(pts, min_points=min_points, num_points=num_points, seed=seed)
-                for name, pts in clouds.items()}
+    entities, labels = {}, {}
+    for name, pts in clouds.items():  # decompose(), keeping the labels for the per-point output
+        lab = decompose_labels(pts, eps=camera["eps"], min_samples=camera["min_samples"], min_points=min_points)
+        rng = np.random.default_rng(seed)
+        entities[name] = [resample(pts[lab == k], num_points, rng) for k in range(int(lab.max()) + 1)]
+        labels[name] = point_labels(loaded[name], kept[name], kept_points[name], pts, lab)
     latents = {}
     with torch.no_grad():
         for name, ents in entities.items():
             u = encoder.encode(torch.from_numpy(np.stack(ents))).float()
             latents[name] = check_latents(u, f"the {len(ents)} encoded {name} entities (encoder {cfg.encoder.name!r})",
                                           dim=encoder.latent_dim)
+            check_training_box(latents[name], encoder, name, camera["box_margin"])
     # observed pieces that already are a goal piece (Chamfer < 5e-4): never attended, matched to it
     from pasta.core.matching import unchanged_pairs
 
@@ -225,6 +206,15 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
                               seed=seed, skeleton=skeleton, fixed=tuple(fixed))
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     plan = planner.plan(problem).check()  # a NaN or out-of-range score/latent is an error, not a plan
+    report = confidence(plan, encoder, latents, camera)
+    import dataclasses
+
+    plan = dataclasses.replace(plan, info={**plan.info, "confidence": report["confidence"], "flags": report["flags"],
+                                           "input": {"frame": frame.describe(),
+                                                     "preprocess": camera["preprocess"].to_dict(),
+                                                     "decompose": {"eps": camera["eps"],
+                                                                   "min_samples": camera["min_samples"],
+                                                                   "min_points": min_points}}})
     text = plan.to_json()
     subgoals = []
     with torch.no_grad():
@@ -234,10 +224,172 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
                 raise InputError(f"plan step {h + 1} ({step.skill}): the encoder {cfg.encoder.name!r} decodes its "
                                  "sub-goal latents to NaN or infinite points")
             subgoals.append(clouds_h.astype(np.float32))
-    files = write_outputs(out, text, subgoals, {"obs": len(entities["obs"]), "goal": len(entities["goal"])})
+    files = write_outputs(out, text, subgoals, {"obs": len(entities["obs"]), "goal": len(entities["goal"])},
+                          labels=labels, frame=frame)
     print(plan.summary())
+    for flag in report["flags"]:
+        print(f"warning: {flag['kind']}: {flag['message']}", file=sys.stderr)
     print(f"wrote {out / 'plan.json'} and {len(files)} sub-goal clouds to {out}")
+    if any(f["kind"] == "unreachable" for f in report["flags"]):
+        return EXIT_UNREACHABLE
     return 0
+
+
+def camera_options(mine: dict[str, str]) -> dict[str, Any]:
+    """The input-contract, preprocessing, decomposition and check keys, validated (one-line ConfigError)."""
+    from pasta.config.validate import check_choice, check_int, check_number
+    from pasta.perception import PRESETS, CloudFrame, PreprocessConfig, read_transform
+
+    units = check_choice(mine["units"], "units", ["m", "mm"])
+    up = check_choice(mine["up"], "up", ["y", "z"])
+    transform = None
+    if mine["transform"]:
+        try:
+            transform = read_transform(mine["transform"])
+        except InputError as exc:
+            raise ConfigError(f"transform={mine['transform']}: {exc}") from None
+    preset = dict(PRESETS[check_choice(mine["preprocess"], "preprocess", list(PRESETS))])
+    kinds = {"crop": "bool", "table": ("none", "height", "ransac"), "table_height": "float",
+             "table_margin": "positive", "outliers": ("none", "statistical"), "outlier_k": "int",
+             "outlier_std": "positive", "complete": ("none", "fill"), "fill_spacing": "positive"}
+    for key, kind in kinds.items():
+        value, full = mine.get(f"preprocess.{key}", ""), f"preprocess.{key}"
+        if value == "":
+            continue
+        if kind == "bool":
+            preset[key] = check_choice(value.lower(), full, ["true", "false"]) == "true"
+        elif kind == "float":
+            preset[key] = check_number(value, full, low=-1.0, high=2.0)
+        elif kind == "positive":
+            preset[key] = check_number(value, full, low=0.0, low_open=True, high=1.0)
+        elif kind == "int":
+            preset[key] = check_int(value, full, low=1, high=1000)
+        else:
+            preset[key] = check_choice(value, full, kind)
+    return {
+        "frame": CloudFrame(units=units, up=up, transform=transform),
+        "preprocess": PreprocessConfig(**preset),
+        "eps": check_number(mine["decompose.eps"], "decompose.eps", low=0.0, low_open=True, high=1.0),
+        "min_samples": check_int(mine["decompose.min_samples"], "decompose.min_samples", low=1, high=10_000),
+        "box_margin": check_number(mine["check.box_margin"], "check.box_margin", low=0.0, high=1.0),
+        "min_feasibility": check_number(mine["check.min_feasibility"], "check.min_feasibility", low=0.0, high=1.0),
+        "max_cost": check_number(mine["check.max_cost"], "check.max_cost", low=0.0, low_open=True),
+        "max_z": check_number(mine["check.max_z"], "check.max_z", low=0.0, low_open=True),
+    }
+
+
+def prepare_input(loaded: Any, name: str, frame: Any, config: Any, *, max_points: int, min_points: int):
+    """File points -> workspace frame -> :func:`pasta.perception.preprocess` -> :func:`prepare_cloud`.
+
+    Returns ``(points (Q, 3) float32 to decompose, kept (P,) bool over the file's valid points, the kept
+    points (K, 3) in the workspace frame)``. Without preprocessing, every point must lie in the workspace.
+    """
+    import numpy as np
+
+    from pasta.perception import preprocess
+
+    pts = frame.to_workspace(loaded.points)
+    if not config.active:
+        ready = prepare_cloud(pts.astype(np.float32), name, max_points=max_points, min_points=min_points)
+        return ready, np.ones(len(pts), bool), pts
+    result = preprocess(pts, config)
+    if result.kept.sum() == 0:
+        raise InputError(f"{name} cloud: preprocessing dropped every one of its {len(pts)} points "
+                         f"({_counts_text(result.counts)}); check units=, up=, transform= and preprocess.table_height")
+    print(f"note: {name} cloud preprocessed: {len(pts):,} points, {_counts_text(result.counts)}, "
+          f"{len(result.points):,} to decompose", file=sys.stderr)
+    ready = prepare_cloud(result.points, name, max_points=max_points, min_points=min_points)
+    return ready, result.kept, pts[result.kept]
+
+
+def _counts_text(counts: dict[str, int]) -> str:
+    words = {"cropped": "{n:,} outside the crop box", "table": "{n:,} on the table", "outliers": "{n:,} outliers",
+             "filled": "{n:,} added to the table"}
+    return ", ".join(words[k].format(n=v) for k, v in counts.items()) or "nothing changed"
+
+
+def point_labels(loaded: Any, kept: Any, kept_points: Any, decomposed: Any, labels: Any):
+    """Entity label of every point of the input file (``-1``: a hole or dropped by preprocessing), shaped
+    like the file (``(N,)`` or ``(H, W)``).
+
+    ``kept (P,)`` marks the file's valid points that preprocessing kept, ``kept_points (K, 3)`` are those in
+    the workspace frame, ``decomposed (Q, 3)`` the cloud DBSCAN labelled with ``labels (Q,)``: each kept point
+    takes the label of its nearest decomposed point (itself, unless voxel downsampling merged it)."""
+    import numpy as np
+    from scipy.spatial import cKDTree
+
+    out = np.full(loaded.valid.shape, -1, dtype=np.int64)
+    keep = np.flatnonzero(loaded.valid)[kept]
+    if len(keep):
+        _, nearest = cKDTree(decomposed).query(kept_points)
+        out[keep] = labels[nearest]
+    return out.reshape(loaded.shape)
+
+
+def check_training_box(latents: Any, encoder: Any, name: str, margin: float) -> None:
+    """Refuse entities whose centroid ``t`` lies more than ``margin`` outside the encoder's box of training
+    centroids (the planner clamps sub-goals into it, so such a plan is silently wrong)."""
+    import numpy as np
+
+    t = latents[:, encoder.z_dim:].detach().cpu().numpy().astype(np.float64)
+    low, high = np.asarray(encoder.t_low, np.float64), np.asarray(encoder.t_high, np.float64)
+    outside = np.maximum(low - margin - t, 0) + np.maximum(t - high - margin, 0)
+    bad = np.flatnonzero(outside.max(1) > 0)
+    if len(bad):
+        k = int(bad[np.argmax(outside[bad].max(1))])
+        axis = "xyz"[int(np.argmax(outside[k]))]
+        box = ", ".join(f"{a} {lo:.3f}..{hi:.3f}" for a, lo, hi in zip("xyz", low, high))
+        raise InputError(f"{name} cloud: {len(bad)} of {len(t)} pieces lie outside the box the models were trained on "
+                         f"(piece {k} centroid ({t[k, 0]:.3f}, {t[k, 1]:.3f}, {t[k, 2]:.3f}) is {outside[k].max():.3f} "
+                         f"out in {axis}; box {box}, check.box_margin={margin:g}); a top-down camera view needs "
+                         "preprocess=camera, another frame units=, up=, transform=")
+
+
+def latent_distances(latents: Any, encoder: Any) -> list[dict[str, float]]:
+    """Per latent ``(K, D)``: ``z_norm`` (Mahalanobis distance of ``z`` under the prior N(0, I)) and
+    ``t_outside`` (metres of ``t`` outside the box of training centroids, 0 inside)."""
+    import numpy as np
+
+    u = np.asarray(latents, dtype=np.float64).reshape(-1, encoder.latent_dim)
+    z, t = u[:, :encoder.z_dim], u[:, encoder.z_dim:]
+    low, high = np.asarray(encoder.t_low, np.float64), np.asarray(encoder.t_high, np.float64)
+    out = np.linalg.norm(np.maximum(low - t, 0) + np.maximum(t - high, 0), axis=1)
+    return [{"z_norm": round(float(a), 6), "t_outside": round(float(b), 6)} for a, b in zip(np.linalg.norm(z, axis=1), out)]
+
+
+def confidence(plan: Any, encoder: Any, latents: dict, camera: dict) -> dict[str, Any]:
+    """How far the plan's latents sit from the training distribution, and the flags it raises.
+
+    Returns ``{"confidence": {...}, "flags": [{"kind", "message"}, ...]}``; kind ``unreachable`` (a step's
+    feasibility below ``check.min_feasibility`` or the final cost above ``check.max_cost``: exit code 3) or
+    ``out_of_distribution`` (a latent with ``|z|`` above ``check.max_z``: a warning).
+    """
+    conf: dict[str, Any] = {name: latent_distances(latents[name], encoder) for name in ("obs", "goal")}
+    steps = []
+    for step in plan.steps:
+        d = latent_distances(step.subgoal, encoder)
+        steps.append({"skill": step.skill, "feasibility": step.feasibility,
+                      "z_norm": max(x["z_norm"] for x in d), "t_outside": max(x["t_outside"] for x in d)})
+    conf["steps"] = steps
+    conf["min_feasibility"] = min((s["feasibility"] for s in steps), default=1.0)
+    conf["final_cost"] = plan.final_cost
+    flags = []
+    low = [f"{h + 1} ({s['skill']}) {s['feasibility']:.3f}" for h, s in enumerate(steps)
+           if s["feasibility"] < camera["min_feasibility"]]
+    if low:
+        flags.append({"kind": "unreachable", "message": f"predicted feasibility below check.min_feasibility="
+                      f"{camera['min_feasibility']:g} at step {', '.join(low)}"})
+    if plan.final_cost > camera["max_cost"]:
+        flags.append({"kind": "unreachable", "message": f"the final state is predicted {plan.final_cost:.4f} "
+                      f"(Chamfer) from the goal, above check.max_cost={camera['max_cost']:g}"})
+    far = [f"{where} {x['z_norm']:.2f}" for where, xs in (("obs", conf["obs"]), ("goal", conf["goal"]),
+                                                         *((f"step {h + 1}", [s]) for h, s in enumerate(steps)))
+           for x in xs if x["z_norm"] > camera["max_z"]]
+    if far:
+        flags.append({"kind": "out_of_distribution", "message": f"|z| above check.max_z={camera['max_z']:g} "
+                      f"(prior N(0, I)): {', '.join(far)}"})
+    return {"confidence": conf, "flags": flags}
+
 
 
 def command_options(mine: dict[str, str]) -> dict[str, int]:
@@ -281,7 +433,7 @@ def prepare_cloud(points, name: str, *, max_points: int, min_points: int):
         raise InputError(f"{name} cloud: {int(outside.sum())} of {len(points)} points lie outside the workspace, the "
                          f"unit cube [{low:g}, {high:g}]^3 (the cloud spans x {lo[0]:.3g}..{hi[0]:.3g}, "
                          f"y {lo[1]:.3g}..{hi[1]:.3g}, z {lo[2]:.3g}..{hi[2]:.3g}); express it in workspace "
-                         "coordinates (metres, y up)")
+                         "coordinates (metres, y up: units=, up=, transform=) or crop it (preprocess.crop=true)")
     if len(points) < min_points:
         raise InputError(f"{name} cloud has {len(points)} point(s); a cloud needs at least min_points={min_points} "
                          "(the smallest entity decomposition keeps)")
@@ -296,9 +448,12 @@ def prepare_cloud(points, name: str, *, max_points: int, min_points: int):
     return np.ascontiguousarray(small, dtype=np.float32)
 
 
-def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, int]) -> list[str]:
-    """Write the sub-goal clouds, ``entities.json`` and, last, ``plan.json`` (via a temporary name, so a
-    ``plan.json`` present is a complete one); return the sub-goal file names."""
+def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, int], *, labels: dict | None = None,
+                  frame: Any = None) -> list[str]:
+    """Write the sub-goal clouds (workspace frame ``step_{h}_subgoal.npy``; in the input's frame and units
+    ``step_{h}_subgoal_input.npy`` when that differs), the per-point labels ``{obs,goal}_labels.npy``,
+    ``entities.json`` and, last, ``plan.json`` (via a temporary name, so a ``plan.json`` present is a
+    complete one); return the workspace sub-goal file names."""
     import json
     import os
 
@@ -306,14 +461,25 @@ def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, i
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "plan.json").unlink(missing_ok=True)  # never leave an older plan beside these sub-goals
-    files = []
+    files, inputs = [], []
     for h, clouds in enumerate(subgoals):
         path = out / f"step_{h}_subgoal.npy"
         np.save(path, clouds)
         files.append(path.name)
-    (out / "entities.json").write_text(json.dumps({**counts, "subgoals": files}, indent=2))
+        if frame is not None and not frame.identity:
+            path = out / f"step_{h}_subgoal_input.npy"
+            np.save(path, frame.from_workspace(clouds).astype(np.float32))
+            inputs.append(path.name)
+        else:
+            (out / f"step_{h}_subgoal_input.npy").unlink(missing_ok=True)
+    extra: dict[str, Any] = {"subgoals": files}
+    if inputs:
+        extra["subgoals_input_frame"] = inputs
+    for name, lab in (labels or {}).items():
+        np.save(out / f"{name}_labels.npy", lab)
+        extra[f"{name}_labels"] = f"{name}_labels.npy"
+    (out / "entities.json").write_text(json.dumps({**counts, **extra}, indent=2))
     tmp = out / "plan.json.tmp"
     tmp.write_text(plan_json)
     os.replace(tmp, out / "plan.json")
     return files
-
