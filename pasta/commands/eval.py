@@ -127,7 +127,7 @@ def eval_job(state: EvalState, seed: int, attempt: int) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import print_skill_warning, split_overrides
     from pasta.config.overrides import build_many
-    from pasta.distributed import map_jobs, split_backend_args
+    from pasta.distributed import BackendError, map_jobs, split_backend_args
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
     backend, items = split_backend_args(list(args.overrides))
@@ -187,22 +187,27 @@ def run(args: argparse.Namespace) -> int:
     where = "" if backend.name == "local" and not opts.workers else f" on {backend.describe()}" + (
         f" with {opts.workers} workers" if opts.workers else "")
     failed: dict[int, str] = {}
-    for outcome in map_jobs(eval_init, eval_job, setup, todo, backend=backend, workers=opts.workers,
-                            label="episode", prog="pasta eval", state=state):
-        seed = int(outcome.item)
-        if not outcome.ok:
-            failed[seed] = outcome.error or ""
-            print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: failed, {failed[seed].splitlines()[0]}",
-                  file=sys.stderr, flush=True)
-            continue
-        row = outcome.value
-        with path.open("a") as f:  # one line per finished episode, by this process only: nothing is lost on interruption
-            f.write(json.dumps(row) + "\n")
-        done[seed] = row
-        skel = "-".join(row.get("skeleton", [])) or "ground truth"
-        print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: {skel:<24} improvement {row['improvement']:+.3f} "
-              f"{'success' if row['success'] else 'failure'}  (plan {row['plan_s']:.1f} s, execute {row['execute_s']:.1f} s)"
-              f"{where}", file=sys.stderr, flush=True)
+    try:
+        for outcome in map_jobs(eval_init, eval_job, setup, todo, backend=backend, workers=opts.workers,
+                                label="episode", prog="pasta eval", state=state):
+            seed = int(outcome.item)
+            if not outcome.ok:
+                failed[seed] = outcome.error or ""
+                print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: failed, {failed[seed].splitlines()[0]}",
+                      file=sys.stderr, flush=True)
+                continue
+            row = outcome.value
+            with path.open("a") as f:  # one line per finished episode, by this process only: nothing is lost on interruption
+                f.write(json.dumps(row) + "\n")
+            done[seed] = row
+            skel = "-".join(row.get("skeleton", [])) or "ground truth"
+            print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: {skel:<24} improvement {row['improvement']:+.3f} "
+                  f"{'success' if row['success'] else 'failure'}  (plan {row['plan_s']:.1f} s, execute {row['execute_s']:.1f} s)"
+                  f"{where}", file=sys.stderr, flush=True)
+    except BackendError as exc:  # workers could not start, or the cluster is unreachable: not a usage error
+        print(f"pasta eval: error: {exc} ({len(done)} of {len(seeds)} episodes are in {path}; "
+              "run the same command again to continue)", file=sys.stderr)
+        return 1
     if failed:
         first = min(failed)
         lines = [f"pasta eval: error: {len(failed)} of {len(seeds)} episodes of {opts.task} / {opts.method} failed "

@@ -24,7 +24,7 @@ import time
 import traceback
 from collections import deque
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from pasta.distributed import BackendError, Outcome, apply_env, call_job, shipped_env, test_kill, warn, worker_state
@@ -39,9 +39,8 @@ class _Worker:
     proc: Any
     conn: Any
     ready: bool = False
-    current: Any = None  # the item it works on
+    current: Any = None  # the item it works on (while busy)
     busy: bool = False
-    messages: list[tuple] = field(default_factory=list)
 
 
 def die_with_parent(parent_pid: int) -> None:

@@ -48,6 +48,7 @@ def ensure_ray(cfg: BackendConfig) -> Any:
         return ray
     kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": True, "configure_logging": False}
     if cfg.address:
+        _probe(cfg.address)
         kwargs["address"] = cfg.address
     else:
         kwargs["num_cpus"] = cfg.num_cpus or os.cpu_count() or 1
@@ -68,6 +69,22 @@ def ensure_ray(cfg: BackendConfig) -> Any:
         _STARTED.append(True)
         atexit.register(ray.shutdown)
     return ray
+
+
+def _probe(address: str, timeout_s: float = 5.0) -> None:
+    """Fail fast when nothing listens at ``HOST:PORT`` (``ray.init`` would retry for minutes)."""
+    import socket
+
+    if address == "auto":
+        return  # Ray finds the cluster started on this machine, or says at once that there is none
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not host or not port.isdigit():
+        raise ConfigError(f"ray.address={address}: must be auto, HOST:PORT or ray://HOST:PORT")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as exc:
+        raise BackendError(f"could not reach ray.address={address}: {exc.strerror or exc} (is `ray start --head` "
+                           "running there?)") from None
 
 
 def _task(init: Callable, job: Callable, setup: Any, item: Any, attempt: int, env: dict, kill: str) -> tuple[str, Any]:
@@ -93,8 +110,15 @@ def _death_errors(ray: Any) -> tuple[type, ...]:
 
 def run_ray(init: Callable, job: Callable, setup: Any, items: list, *, cfg: BackendConfig, workers: int,
             max_attempts: int, label: str, prog: str, kill: str = "") -> Iterator[Outcome]:
-    """Run the items as Ray tasks, at most ``workers`` in flight (0: the cluster's CPUs); yield outcomes."""
+    """Run the items as Ray tasks, at most ``workers`` in flight (0: the cluster's CPUs); an iterator of
+    outcomes. Connects to Ray now (an unreachable cluster fails here, before the first result)."""
     ray = ensure_ray(cfg)
+    return _outcomes(ray, init, job, setup, items, workers=workers, max_attempts=max_attempts, label=label,
+                     prog=prog, kill=kill)
+
+
+def _outcomes(ray: Any, init: Callable, job: Callable, setup: Any, items: list, *, workers: int, max_attempts: int,
+              label: str, prog: str, kill: str) -> Iterator[Outcome]:
     remote = ray.remote(num_cpus=1, max_retries=0)(_task)
     env = shipped_env()
     deaths = _death_errors(ray)

@@ -1,4 +1,5 @@
-"""Small jobs for the backend tests (module-level functions: Ray and ``spawn`` send them by reference or value)."""
+"""Small jobs for the backend tests (module-level functions: Ray and ``spawn`` send them by reference or value),
+and :func:`require_ray`."""
 
 from __future__ import annotations
 
@@ -33,3 +34,15 @@ def check_values(out, good=(0, 1, 2, 4)):
     for i in good:
         assert out[i].ok and out[i].value["value"] == 10 * i, out[i].error
     assert not out[3].ok and "item 3 raises on purpose" in out[3].error and out[3].attempts == 1
+
+
+def require_ray():
+    """The ``ray`` module; skips the test without Ray, except under ``PASTA_REQUIRE_RAY=1`` (CI), where a
+    missing Ray fails it."""
+    if os.environ.get("PASTA_REQUIRE_RAY") == "1":
+        import ray  # an ImportError fails the test: CI must run these
+
+        return ray
+    import pytest
+
+    return pytest.importorskip("ray", reason="Ray is an optional extra: pip install pasta-dough[ray]")

@@ -7,17 +7,8 @@ fails them, so CI cannot pass by skipping.
 
 from __future__ import annotations
 
-import os
-
 import pytest
-
-
-def require_ray():
-    if os.environ.get("PASTA_REQUIRE_RAY") == "1":
-        import ray  # noqa: F401 - an ImportError fails the test: CI must run these
-
-        return ray
-    return pytest.importorskip("ray", reason="Ray is an optional extra: pip install pasta-dough[ray]")
+from _distributed_jobs import require_ray
 
 
 @pytest.fixture(scope="module")

@@ -73,3 +73,34 @@ def test_cli_bad_backend_exits_2(args, capsys, tmp_path):
 def test_init_failure_stops_the_run():
     with pytest.raises(BackendError, match="a worker could not start"):
         toy.run(BackendConfig(), 2, setup={"scale": 1, "fail_init": True})
+
+
+def test_unreachable_ray_address_fails_fast(capsys, tmp_path):
+    """Nothing listens at the address: one error line naming it, exit 1, no demo made (ray.init would retry
+    for minutes)."""
+    import socket
+
+    from pasta.cli import main
+
+    ray = toy.require_ray()
+    if ray.is_initialized():
+        pytest.skip("a Ray instance is running in this process")
+    with socket.socket() as s:  # a port nothing listens on
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    assert main(["demos", "skill=push", "num=1", f"out={tmp_path}", "backend=ray", f"ray.address=127.0.0.1:{port}"]) == 1
+    err = capsys.readouterr().err
+    assert f"could not reach ray.address=127.0.0.1:{port}" in err and "ray start --head" in err
+    assert not list((tmp_path / "push").glob("*.npz"))
+
+
+def test_local_backend_never_imports_ray():
+    import subprocess
+
+    code = ("import sys, pasta.distributed as d, pasta.commands.eval, pasta.demos.generate, pasta.train.pipeline; "
+            "cfg, rest = d.split_backend_args(['backend=local', 'num=2']); "
+            "out = list(d.map_jobs(len, lambda s, i, a: i * s, [1, 2], [0, 1], backend=cfg.check())); "
+            "assert [o.value for o in out] == [0, 2], out; print('ray' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "False"

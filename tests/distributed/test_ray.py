@@ -103,3 +103,22 @@ def test_eval_rows_same_local_and_ray(ray_local, tmp_path, monkeypatch, capfd):
     a = json.loads((tmp_path / "local" / "push_pasta.json").read_text())
     b = json.loads((tmp_path / "ray" / "push_pasta.json").read_text())
     assert (a["improvement_mean"], a["success_rate"]) == (b["improvement_mean"], b["success_rate"])
+
+
+@pytest.mark.sim
+def test_pipeline_demos_units_on_ray_then_skipped_under_local(ray_local, tmp_path):
+    from pasta.train.pipeline import run_pipeline
+
+    tiny = [f"demos.{k}={v}" for k, v in TINY.items() if k != "skill"]
+    args = [f"data={tmp_path / 'demos'}", f"out={tmp_path / 'models'}", "stages=demos", "skills=push",
+            "num_demos=2", "variant_demos=0", "workers=2", *tiny]
+    lines: list[str] = []
+    results = run_pipeline([*args, "backend=ray"], echo=lines.append)
+    assert [(r.name, r.status) for r in results] == [("demos/push", "ran")]
+    assert "backend=ray (local instance)" in lines[0]
+    reference = tmp_path / "reference"
+    generate_demos(DemoConfig(num=2, out=str(reference), workers=0, **TINY), progress=False)
+    assert _files(tmp_path / "demos" / "push") == _files(reference / "push")
+    # the backend is not a setting of the unit: under local it is done already
+    results = run_pipeline([*args, "backend=local"], echo=lines.append)
+    assert [(r.name, r.status) for r in results] == [("demos/push", "skipped")]
