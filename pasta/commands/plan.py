@@ -54,8 +54,8 @@ COMMAND_KEYS = {
     "transform": "",
     # preprocessing (pasta.perception.preprocess): a preset, then single keys over it ("" = the preset's value)
     "preprocess": "none",
-    **{f"preprocess.{k}": "" for k in ("crop", "table", "table_height", "table_margin", "outliers", "outlier_k",
-                                        "outlier_std", "complete", "fill_spacing")},
+    **{f"preprocess.{k}": "" for k in ("crop", "crop_low", "crop_high", "table", "table_height", "table_margin",
+                                        "outliers", "outlier_k", "outlier_std", "complete", "fill_spacing")},
     # DBSCAN of the decomposition (pasta.core.decompose)
     "decompose.eps": "0.03",
     "decompose.min_samples": "6",
@@ -238,7 +238,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
 def camera_options(mine: dict[str, str]) -> dict[str, Any]:
     """The input-contract, preprocessing, decomposition and check keys, validated (one-line ConfigError)."""
     from pasta.config.validate import check_choice, check_int, check_number
-    from pasta.perception import PRESETS, CloudFrame, PreprocessConfig, read_transform
+    from pasta.perception import PRESETS, CloudFrame, read_transform
 
     units = check_choice(mine["units"], "units", ["m", "mm"])
     up = check_choice(mine["up"], "up", ["y", "z"])
@@ -249,7 +249,7 @@ def camera_options(mine: dict[str, str]) -> dict[str, Any]:
         except InputError as exc:
             raise ConfigError(f"transform={mine['transform']}: {exc}") from None
     preset = dict(PRESETS[check_choice(mine["preprocess"], "preprocess", list(PRESETS))])
-    kinds = {"crop": "bool", "table": ("none", "height", "ransac"), "table_height": "float",
+    kinds = {"crop": "bool", "crop_low": "xyz", "crop_high": "xyz", "table": ("none", "height", "ransac"), "table_height": "float",
              "table_margin": "positive", "outliers": ("none", "statistical"), "outlier_k": "int",
              "outlier_std": "positive", "complete": ("none", "fill"), "fill_spacing": "positive"}
     for key, kind in kinds.items():
@@ -258,6 +258,11 @@ def camera_options(mine: dict[str, str]) -> dict[str, Any]:
             continue
         if kind == "bool":
             preset[key] = check_choice(value.lower(), full, ["true", "false"]) == "true"
+        elif kind == "xyz":
+            parts = value.split(",")
+            if len(parts) != 3:
+                raise ConfigError(f"{full}={value}: must be three comma-separated numbers x,y,z")
+            preset[key] = tuple(check_number(v, full, low=-10.0, high=10.0) for v in parts)
         elif kind == "float":
             preset[key] = check_number(value, full, low=-1.0, high=2.0)
         elif kind == "positive":
@@ -268,7 +273,7 @@ def camera_options(mine: dict[str, str]) -> dict[str, Any]:
             preset[key] = check_choice(value, full, kind)
     return {
         "frame": CloudFrame(units=units, up=up, transform=transform),
-        "preprocess": PreprocessConfig(**preset),
+        "preprocess": _preprocess_config(preset),
         "eps": check_number(mine["decompose.eps"], "decompose.eps", low=0.0, low_open=True, high=1.0),
         "min_samples": check_int(mine["decompose.min_samples"], "decompose.min_samples", low=1, high=10_000),
         "box_margin": check_number(mine["check.box_margin"], "check.box_margin", low=0.0, high=1.0),
@@ -276,6 +281,15 @@ def camera_options(mine: dict[str, str]) -> dict[str, Any]:
         "max_cost": check_number(mine["check.max_cost"], "check.max_cost", low=0.0, low_open=True),
         "max_z": check_number(mine["check.max_z"], "check.max_z", low=0.0, low_open=True),
     }
+
+
+def _preprocess_config(values: dict[str, Any]) -> Any:
+    from pasta.perception import PreprocessConfig
+
+    try:
+        return PreprocessConfig(**values)
+    except InputError as exc:  # e.g. crop_low not below crop_high: a config error, before any work
+        raise ConfigError(str(exc)) from None
 
 
 def prepare_input(loaded: Any, name: str, frame: Any, config: Any, *, max_points: int, min_points: int):

@@ -70,7 +70,7 @@ class PreprocessConfig:
         low, high = np.asarray(self.crop_low, float), np.asarray(self.crop_high, float)
         if low.shape != (3,) or high.shape != (3,) or not (np.isfinite(low).all() and np.isfinite(high).all()
                                                            and (low < high).all()):
-            raise InputError(f"preprocess.crop_low/crop_high {tuple(low)} / {tuple(high)}: three finite numbers each, "
+            raise InputError(f"preprocess.crop_low/crop_high {low.tolist()} / {high.tolist()}: three finite numbers each, "
                              "low < high")
 
     @property

@@ -289,7 +289,9 @@ def test_contract_checks_and_exit_codes(tmp_path, analytic_plugins, capsys):
     assert [f["kind"] for f in flags] == ["unreachable"]
     for bad, message in [("units=cm", "units=cm: must be one of m, mm"), ("up=x", "up=x"),
                          ("decompose.eps=0", "decompose.eps=0"), ("preprocess=kinect", "preprocess=kinect"),
-                         ("preprocess.table=plane", "preprocess.table=plane"), (f"transform={obs}", "4x4")]:
+                         ("preprocess.table=plane", "preprocess.table=plane"), (f"transform={obs}", "4x4"),
+                         ("preprocess.crop_low=0,0", "three comma-separated"),
+                         ("preprocess.crop_high=0,0,0", "low < high")]:
         assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *ARGS, bad]) == 2
         assert message in capsys.readouterr().err
 
