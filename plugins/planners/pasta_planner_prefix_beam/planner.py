@@ -108,7 +108,9 @@ class PrefixBeamPlanner(LatentPlanner):
                              start=parent.states[lo])
                 evaluations += res.evaluations
                 searches += 1
-                for name, best in zip(names, res.best):
+                found = {tuple(b[0]): b for b in res.best if b is not None}  # keyed by window, whatever the order
+                for name in names:
+                    best = found.get((parent.skills + (name,))[lo:])
                     if best is None:
                         continue
                     window_skills, window_attention, window_subgoals, score = best
