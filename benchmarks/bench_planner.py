@@ -144,11 +144,17 @@ def scaling(args) -> None:
                 print(f"| {planner} | {k} | {h} | {n_seq} | {r['time']:.1f} | {r['score']:.4f} | {r['skills']} | {note} |",
                       flush=True)
                 results.append((planner, k, h, r, note))
+    report(results, args)
+
+
+def report(results, args) -> None:
+    """Fitted growth of the time with H and the PNG, from ``(planner, K, H, row or None, note)`` rows."""
+    skills = sorted({r[1] for r in results})
     import numpy as np
 
     print()
     for planner in ("exhaustive", "prefix_beam"):
-        for k in args.skills:
+        for k in skills:
             pts = [(h, r["time"]) for p, kk, h, r, _ in results if p == planner and kk == k and r]
             if len(pts) >= 2:
                 hs, ts = np.array([p[0] for p in pts], float), np.array([p[1] for p in pts], float)
@@ -164,7 +170,7 @@ def scaling(args) -> None:
 
         fig, (a, b) = plt.subplots(1, 2, figsize=(10, 4))
         for planner, style in (("exhaustive", "s--"), ("prefix_beam", "o-")):
-            for k in args.skills:
+            for k in skills:
                 pts = [(h, r) for p, kk, h, r, _ in results if p == planner and kk == k and r]
                 if pts:
                     a.plot([p[0] for p in pts], [p[1]["time"] for p in pts], style, label=f"{planner}, K={k}")
@@ -183,6 +189,17 @@ def scaling(args) -> None:
         print(f"plot written to {args.plot}")
 
 
+def replot(path: str, args) -> None:
+    """Rebuild the fit and the PNG from the table a ``--scaling`` run printed (e.g. one cut short)."""
+    results = []
+    for line in Path(path).read_text().splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 8 and cells[0] in ("exhaustive", "prefix_beam"):
+            row = {"time": float(cells[4]), "score": float(cells[5]), "skills": cells[6]} if cells[4] else None
+            results.append((cells[0], int(cells[1]), int(cells[2]), row, cells[7]))
+    report(results, args)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--samples", type=int, nargs="+", default=[500, 1000, 2000, 5000])
@@ -194,6 +211,7 @@ def main() -> None:
     ap.add_argument("--extra", action="store_true", help="also compare matching modes and the sampling planner")
     ap.add_argument("--plot", default="docs/planning_bench.png")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--replot", default="", help="--scaling only: fit and plot the table of an earlier run's output")
     ap.add_argument("--scaling", action="store_true", help="time and score vs horizon and number of skills")
     ap.add_argument("--horizons", type=int, nargs="+", default=[3, 4, 5, 6, 7, 8])
     ap.add_argument("--skills", type=int, nargs="+", default=[3, 5], choices=[3, 4, 5])
@@ -202,6 +220,11 @@ def main() -> None:
     args = ap.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.replot:
+        if args.plot == "docs/planning_bench.png":
+            args.plot = "docs/planning_scaling.png"
+        replot(args.replot, args)
+        return
     if args.scaling:
         if args.plot == "docs/planning_bench.png":
             args.plot = "docs/planning_scaling.png"

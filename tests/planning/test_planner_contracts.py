@@ -1,4 +1,4 @@
-"""The three built-in planners honour the planner contract on the analytic problem (known optimum)."""
+"""The four built-in planners honour the planner contract on the analytic problem (known optimum)."""
 
 from __future__ import annotations
 

@@ -71,3 +71,23 @@ def test_same_seed_same_plan():
 def test_bad_settings_name_the_key(key):
     with pytest.raises(ConfigError, match=f"planner.{key}"):
         load_config(["planner=prefix_beam", f"planner.{key}={-1 if key == 'max_horizon' else 0}"])
+
+
+def test_search_reports_each_sequences_best_candidate():
+    import torch
+
+    from pasta.planning import LatentPlannerConfig, build_plan, search
+
+    problem = analytic_problem()
+    sequences = [("split", "move", "flatten"), ("split", "flatten", "move"), ("move", "split", "flatten")]
+    cfg = LatentPlannerConfig(num_samples=16, iterations=10, clearance_weight=0.0)
+    res = search(problem, sequences, cfg, torch.Generator().manual_seed(0))
+    assert [b[0] for b in res.best] == sequences
+    scores = [b[3] for b in res.best]
+    assert [round(r["score"], 6) for r in res.per_sequence] == [round(x, 6) for x in scores]
+    winner = res.best[scores.index(max(scores))]
+    assert winner[0] == res.skeleton and winner[1] == res.attention and max(scores) == res.score
+    for skeleton, attention, subgoals, score in res.best:  # each candidate re-evaluates to its score
+        plan = build_plan(problem, skeleton, attention, subgoals, planner="t", cost_weight=cfg.cost_weight,
+                          floor=cfg.feasibility_floor)
+        assert abs(plan.score - score) < 1e-4 * max(1.0, score), (skeleton, plan.score, score)

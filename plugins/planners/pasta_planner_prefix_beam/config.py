@@ -9,15 +9,15 @@ from pasta.planning import HalvingConfig
 
 @dataclass
 class PrefixBeamConfig(HalvingConfig):
-    """beam search over skill prefixes (warm-started one-step searches), then the shared optimiser on the best full sequences."""
+    """beam search over skill prefixes (warm-started window searches), then the shared optimiser on the best full sequences."""
 
     width: int = 3  # prefixes kept per depth and entity count
     # steps re-optimised when a prefix is extended: the last `window` steps, from the set the parent reached
     # before them (1: only the new step, from the parent's end set)
     window: int = 2
     final: int = 6  # complete sequences optimised jointly at the end (num_samples / iterations as above)
-    prefix_samples: int = 16  # samples of each one-step prefix search
-    prefix_iterations: int = 30  # iterations of each one-step prefix search
+    prefix_samples: int = 16  # samples per child sequence in the prefix searches
+    prefix_iterations: int = 30  # iterations of each prefix search
     # as exhaustive's: 0: only sequences of the problem's horizon H; N > 0: every complete sequence of
     # 1..N steps is a candidate (ignored when the problem gives a skeleton)
     max_horizon: int = 0

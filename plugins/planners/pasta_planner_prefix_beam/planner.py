@@ -24,22 +24,23 @@ class _Prefix:
 
 
 class PrefixBeamPlanner(LatentPlanner):
-    """Beam search over skill prefixes (PASTA's objective, a cost that grows linearly with H and K).
+    """Beam search over skill prefixes (PASTA's objective; the prefix work grows linearly with H and K).
 
     Depth ``d = 1 .. H``: every kept prefix is extended by every skill that can consume from its set and
-    whose count can still reach the goal's within the steps left (cardinality pruning). Each child's new
-    step alone is optimised by :func:`pasta.planning.search` from the parent's end set (``start=``: the
-    warm start, as ``receding_horizon`` commits steps), ``prefix_samples`` samples x
-    ``prefix_iterations``; its value is ``sum_h log max(f_h, floor)`` of the parent's steps plus the log
-    of the child's search score, whose set cost of the end set to the goal (``min(K, G)`` pairs matched)
-    is the optimistic estimate of the rest. The best ``width`` children of each entity count are kept
-    (a set with fewer entities than the goal leaves goal entities unmatched, so values are only
-    compared between prefixes of the same count). Every child whose
-    entity count equals the goal's is a complete candidate (only length ``H``, or with
-    ``max_horizon = N > 0`` any length ``1..N``, as ``exhaustive``); the ``final`` best of them are optimised jointly from the observed set with
-    ``num_samples`` x ``iterations`` (the same :func:`search` and objective as ``exhaustive``), and the
-    best wins. A given ``problem.skeleton`` is searched directly. At most ``width * C * K`` window searches
-    per depth (``C`` entity counts): time grows about linearly in ``H`` and ``K`` instead of ``K^H``.
+    whose count can still reach the goal's within the steps left (cardinality pruning). The children of
+    one parent are scored in one :func:`pasta.planning.search` call: the last ``window`` steps of each
+    child are optimised from the set the parent reached before them (``start=``: the warm start; the
+    earlier steps stay as the parent committed them), ``prefix_samples`` samples x ``prefix_iterations``.
+    A child's value is ``sum_h log max(f_h, floor)`` of the steps before its window plus the log of its
+    window's search score, whose set cost of the end set to the goal (``min(K, G)`` pairs matched) is the
+    estimate of the rest. The best ``width`` children of each entity count are kept (a set with fewer
+    entities than the goal leaves goal entities unmatched, so values are only compared between prefixes
+    of the same count). Every child whose entity count equals the goal's is a complete candidate (only
+    length ``H``, or with ``max_horizon = N > 0`` any length ``1..N``, as ``exhaustive``); the ``final``
+    best of them are optimised jointly from the observed set with ``num_samples`` x ``iterations`` (the
+    same :func:`search` and objective as ``exhaustive``), and the best wins. A given ``problem.skeleton``
+    is searched directly. At most ``width * C`` searches per depth (``C`` entity counts), each over at
+    most ``K`` sequences of ``window`` steps, instead of ``K^H`` sequences.
     """
 
     name = "prefix_beam"
@@ -108,7 +109,9 @@ class PrefixBeamPlanner(LatentPlanner):
                              start=parent.states[lo])
                 evaluations += res.evaluations
                 searches += 1
-                for name, best in zip(names, res.best):
+                found = {tuple(b[0]): b for b in res.best if b is not None}  # keyed by window, whatever the order
+                for name in names:
+                    best = found.get((parent.skills + (name,))[lo:])
                     if best is None:
                         continue
                     window_skills, window_attention, window_subgoals, score = best
