@@ -64,6 +64,8 @@ def main(argv: list[str]) -> int:
             name += f", planner {s['planner']}"  # a run with planner=NAME other than the method's default
         if s["task"] == "crs_twice" and s["method"] != "oracle" and s.get("skeleton_given") is False:
             name += ", no skeleton"  # the skeleton is given for crs_twice by default, as in the paper
+        if s.get("controller") == "learned" and (s.get("execute_settings") or {}).get("regress_stop") == "off":
+            name += ", regression stop off"  # execute.regress_stop=off: the learned policies' own stop only
         settings = s.get("planner_settings") or {}
         if s["method"] != "oracle" and "clearance_weight" not in settings:
             name += " (before clearance)"  # run before the clearance penalty and executor reorder existed
