@@ -106,6 +106,8 @@ class ExecuteConfig:
             raise ConfigError(f"execute.controller must be 'learned' or 'heuristic', got {self.controller!r}")
         if self.max_steps < 0 or self.idle_steps < 0 or self.min_points < 1 or self.decode_points < 1:
             raise ConfigError("execute: min_points, decode_points must be >= 1, max_steps and idle_steps >= 0")
+        if str(self.regress_stop).lower() in ("false", "off", "no"):  # YAML 1.1 reads a bare `off` as false
+            self.regress_stop = "off"
         if self.regress_stop not in ("learned", "all", "off"):
             raise ConfigError(f"execute.regress_stop must be 'learned', 'all' or 'off', got {self.regress_stop!r}")
         if not self.regress_rise > 0:

@@ -98,6 +98,7 @@ def test_execute_config_chooses_which_controllers_are_watched():
     assert ExecuteConfig(controller="heuristic").regression_stop() is None
     assert ExecuteConfig(controller="heuristic", regress_stop="all").regression_stop() is not None
     assert ExecuteConfig(controller="learned", regress_stop="off").regression_stop() is None
+    assert ExecuteConfig(controller="learned", regress_stop="False").regression_stop() is None  # `off` via YAML
     assert ExecuteConfig(controller="learned", regress_rise=0.25).regression_stop().rise == 0.25
     with pytest.raises(ConfigError, match="regress_stop"):
         ExecuteConfig(regress_stop="sometimes")
