@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core.metrics import chamfer
 
 __all__ = ["RegressionStop", "SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
 
@@ -104,8 +105,6 @@ class RegressionStop:
         return cloud[np.linspace(0, len(cloud) - 1, self.points).astype(np.int64)]  # same particles every step
 
     def _distance(self, piece: np.ndarray) -> float:
-        from pasta.core.metrics import chamfer
-
         return float(chamfer(self._subset(piece), self._goal))
 
     def start(self, piece: np.ndarray, goal: np.ndarray) -> None:
