@@ -94,7 +94,9 @@ def split_backend_args(items: Sequence[str] | Mapping[str, Any]) -> tuple[Backen
     Raises :class:`ConfigError` (one line, exit 2) for an unknown backend or ``ray.*`` key, bad numbers,
     or ``ray.*`` given without ``backend=ray``.
     """
-    pairs = list(items.items()) if isinstance(items, Mapping) else [_pair(i) for i in items]
+    from pasta.config.overrides import split_overrides
+
+    pairs = list(items.items()) if isinstance(items, Mapping) else list(split_overrides([str(i) for i in items]).items())
     rest: dict[str, Any] = {}
     cfg = BackendConfig()
     ray_given: list[str] = []
@@ -120,13 +122,6 @@ def split_backend_args(items: Sequence[str] | Mapping[str, Any]) -> tuple[Backen
     if ray_given and cfg.name != "ray":
         raise ConfigError(f"{ray_given[0]} is a setting of the Ray backend; add backend=ray")
     return cfg, (rest if isinstance(items, Mapping) else [f"{k}={v}" for k, v in rest.items()])
-
-
-def _pair(item: str) -> tuple[str, str]:
-    key, eq, value = str(item).partition("=")
-    if not eq or not key.strip():
-        raise ConfigError(f"argument {item!r} must look like key=value")
-    return key.strip(), value.strip()
 
 
 @dataclass
