@@ -23,6 +23,7 @@ written last, under a temporary name renamed into place.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 from typing import Any
@@ -207,8 +208,6 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     plan = planner.plan(problem).check()  # a NaN or out-of-range score/latent is an error, not a plan
     report = confidence(plan, encoder, latents, camera)
-    import dataclasses
-
     plan = dataclasses.replace(plan, info={**plan.info, "confidence": report["confidence"], "flags": report["flags"],
                                            "input": {"frame": frame.describe(),
                                                      "preprocess": camera["preprocess"].to_dict(),
