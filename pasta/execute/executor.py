@@ -501,6 +501,17 @@ def execute_plan(
     return result
 
 
+def _tool_rgba(color: str) -> tuple[float, float, float, float]:
+    """RGBA of a ToolSpec colour name (``"tab:red"``); the viewer's default grey for ``""``."""
+    from pasta.io.schemas import DEFAULT_TOOL_COLOR
+
+    if not color:
+        return tuple(DEFAULT_TOOL_COLOR)
+    from matplotlib.colors import to_rgba
+
+    return tuple(float(v) for v in to_rgba(color))
+
+
 class _Log:
     """Writes an execution into a RunLogger (topics of docs/logging.md)."""
 
@@ -541,8 +552,10 @@ class _Log:
         for name in self.sim.tool_names:  # every tool of the simulator, drawn from its ToolSpec's primitives
             pose = (override or {}).get(name)
             pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
-            for ent, kind, size, centre, quat in tool_shapes(self.sim.tool_spec(name), pose, self.sim.tool_aperture(name)):
-                prims.append(ToolPrimitive(ent, kind, size, centre, quat))
+            spec = self.sim.tool_spec(name)
+            color = _tool_rgba(spec.color)
+            for ent, kind, size, centre, quat in tool_shapes(spec, pose, self.sim.tool_aperture(name)):
+                prims.append(ToolPrimitive(ent, kind, size, centre, quat, color))
         self.log.tools("/tools", t, prims)
 
     def step_start(self, h: int, obs: Any, labels: np.ndarray, subgoal: list[np.ndarray], step: PlanStep,
