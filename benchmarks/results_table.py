@@ -22,10 +22,12 @@ PAPER = {
     ("crs_twice", "pasta"): (0.604, 0.40),
     ("cut_rearrange", "flat"): (0.797, 0.60),
     ("crs", "flat"): (-0.712, 0.00),
+    ("lift_spread", "pasta"): (0.904, 1.00),
+    ("gather_move", "pasta"): (0.715, 1.00),
 }
 #: task -> planning seconds per episode in the paper (on a GPU)
 PAPER_PLAN_S = {"cut_rearrange": 35.0, "crs": 307.0, "crs_twice": 7810.0}
-TASKS = ("cut_rearrange", "crs", "crs_twice", "crs_distractors")
+TASKS = ("lift_spread", "gather_move", "cut_rearrange", "crs", "crs_twice", "crs_distractors")
 METHODS = ("pasta", "sampling", "flat", "oracle")
 #: the planner a method uses unless the run names another (pasta.execute.session.build_session)
 DEFAULT_PLANNER = {"pasta": "exhaustive", "sampling": "sampling", "flat": "exhaustive"}

@@ -247,10 +247,11 @@ class Skill:
         """
         raise self._missing("demonstration scene", "the skill plugin does not define `demo_scene`")
 
-    def demo_tools(self) -> dict[str, ToolPose]:
-        """Static tools a demonstration scene places besides the skill's own tool, ``{tool name: pose}``
-        (e.g. the raised board a lift sets the dough on). Placed after the dough is loaded, before it
-        settles. Default: none."""
+    def demo_tools(self, variant: str = "default") -> dict[str, ToolPose]:
+        """Static tools a demonstration scene of ``variant`` places besides the skill's own tool,
+        ``{tool name: pose}`` (e.g. the raised board a lift sets the dough on). Placed after the dough is
+        loaded, before it settles. Default: none. (An override without the ``variant`` argument is called
+        without it.)"""
         return {}
 
     @classmethod

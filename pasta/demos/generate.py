@@ -184,7 +184,7 @@ class DemoWriter:
         rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])
         boxes = scene_boxes(skill, rng, sim.floor_y, cfg.scene)
         sim.reset(scene_particles(boxes, cfg.n_particles, rng)[0], seed=int(rng.integers(2**31)))
-        for name, pose in skill.demo_tools().items():
+        for name, pose in demo_tools(skill, cfg.scene).items():
             sim.set_tool_pose(name, pose.position, yaw=pose.yaw)
         for _ in range(cfg.settle_steps):
             sim.step()
@@ -293,3 +293,14 @@ def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int 
         raise DemoWorkerError(failure_report(cfg, failures))
     return {"generated": len(steps), "skipped": skipped, "wall_s": time.perf_counter() - t0,
             "mean_steps": float(np.mean(steps)) if steps else 0.0, "backend": backend.describe()}
+
+
+def demo_tools(skill: Any, variant: str) -> dict:
+    """``skill.demo_tools(variant)``; a plugin written before the hook took the variant is called without it."""
+    import inspect
+
+    try:
+        takes_variant = len(inspect.signature(skill.demo_tools).parameters) >= 1
+    except (TypeError, ValueError):
+        takes_variant = True
+    return skill.demo_tools(variant) if takes_variant else skill.demo_tools()

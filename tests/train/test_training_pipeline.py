@@ -135,8 +135,10 @@ def test_demos_stage_adds_the_variant_units_the_skills_declare():
     wide = {u.name: u for u in units}["demos/push-wide"]
     assert {f"demos/{s}" for s in demo_skills()} <= {u.name for u in units}  # one per skill, plus variants
     builtin = [u.name for u in units if u.configs[0].skill in ("cut", "push", "roll")]
-    assert builtin == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll"]
+    assert builtin == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll", "demos/roll-board"]
     assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (170, "wide", "push")
+    board = {u.name: u for u in units}["demos/roll-board"]
+    assert (board.configs[0].num, board.configs[0].scene) == (120, "board")  # 20 default + 100 on the board
     wide = {u.name: u for u in plan(PipelineConfig(stages="demos", num_demos=20, variant_demos=5), {})}["demos/push-wide"]
     assert wide.configs[0].num == 25
     assert "demos/push-wide" not in [u.name for u in plan(PipelineConfig(stages="demos", variant_demos=0), {})]

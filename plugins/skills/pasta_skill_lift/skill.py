@@ -132,7 +132,7 @@ class LiftSkill(Skill):
     def controller(self) -> Controller:
         return LiftController(self.config)
 
-    def demo_tools(self) -> dict[str, ToolPose]:
+    def demo_tools(self, variant: str = "default") -> dict[str, ToolPose]:
         """The raised board at its task pose: demonstrations lift onto it, as the tasks do."""
         return {"board": ToolPose(BOARD_POSE, 0.0)}
 

@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
 from pasta_skill_roll.plugin import SPEC, RollConfig
 from pasta_skill_roll.tool import ROLLER, ROLLER_PARK, ROLLER_RADIUS
@@ -143,6 +143,10 @@ class RollSkill(Skill):
     #: `pasta pipeline` settings: near-miss feasibility negatives (outputs shifted 3-10 cm from where the roll
     #: leaves the dough), chosen on the crs validation configs (docs/learning.md); the policy sees the
     #: execution step and the tool pose; the stopping-rule grid (docs/policies.md)
+    #: ``board``: a dough cube on the raised board of the lift package (LiftSpread's second step); without
+    #: these the roll's feasibility network only ever saw pieces resting on the floor
+    demo_variants = {"board": DemoVariant(config={}, pipeline_demos=100,
+                                          description="a dough cube (side 0.055-0.07) on the lift package's raised board")}
     training_defaults = {
         "feasibility": {"stride": 4, "epochs": 20, "shift_per_positive": 5},
         "policy": {"step_feature": True, "pose_feature": True},
@@ -196,7 +200,22 @@ class RollSkill(Skill):
         return RollController(self.config)
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
-        """A small piece in the spreading area (x in 0.22-0.32)."""
+        """``default``: a small piece in the spreading area (x in 0.22-0.32) on the floor; ``board``: a cube
+        resting on the board's top (:meth:`demo_tools`), where LiftSpread rolls."""
+        if variant == "board":
+            from pasta_skill_lift.tool import BOARD_TOP
+
+            side = float(rng.uniform(0.055, 0.07))
+            return [((float(rng.uniform(0.25, 0.33)), BOARD_TOP + side / 2, float(rng.uniform(0.42, 0.58))), (side,) * 3)]
         from pasta.tasks.library import SPREAD_X, small_box
 
         return [small_box(rng, floor_y, SPREAD_X, (0.3, 0.7))]
+
+    def demo_tools(self, variant: str = "default") -> dict[str, ToolPose]:
+        """The lift package's board at its task pose for the ``board`` variant (needs that package's
+        ``board`` tool registered); none otherwise."""
+        if variant != "board":
+            return {}
+        from pasta_skill_lift.tool import BOARD_POSE
+
+        return {"board": ToolPose(BOARD_POSE, 0.0)}

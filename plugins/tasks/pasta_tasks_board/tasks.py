@@ -7,7 +7,10 @@ with the random parameters drawn here:
 
 - ``lift_spread``: a dough cube (side U(0.055, 0.07)) on the floor right of the board (x 0.62-0.75,
   z 0.4-0.6); lift it onto the board (target centroid x 0.27-0.32, z 0.45-0.55), then roll it into a
-  flat sheet there along x (thickness U(0.016, 0.02), :func:`roll_params`). Threshold 0.88.
+  flat sheet there along x (thickness U(0.016, 0.02), :func:`roll_params`). Threshold 0.92, not the
+  paper's 0.88: with this package's score (normalised EMD improvement of observed clouds) the lift
+  alone, the cube set down on the board unrolled, already scores 0.854-0.901 on validation seeds
+  2000-2006, and the full chain 0.940-0.989; 0.92 lies between (docs/tasks.md).
 - ``gather_move``: three lumps in a row (x 0.6-0.75, z 0.4-0.6); gather them into one piece (the gather
   expert's random width), then lift it onto the board (target centroid x 0.24-0.36, z 0.42-0.58).
   Threshold 0.65.
@@ -51,7 +54,7 @@ class LiftSpreadConfig(TaskConfig):
     on the board (the rolled sheet, up to ~0.2 long, grows along x from there and must stay on the board);
     ``height``, ``widening``: the roll's parameters (:func:`roll_params`)."""
 
-    threshold: float = 0.88
+    threshold: float = 0.92
     side_min: float = 0.055
     side_max: float = 0.07
     target_x_min: float = 0.27
