@@ -55,8 +55,8 @@ def main(argv: list[str]) -> int:
     split = "val" if "--val" in argv else "test"
     argv = [a for a in argv if a != "--val"]
     directory = Path(argv[0]) if argv else Path("runs/eval")
-    print("| task | method | horizon | configs | normalised improvement | success | paper | plan s | execute s |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|")
+    print("| task | method | skills | horizon | configs | normalised improvement | success | paper | plan s | execute s |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in rows(directory, split):
         default_run = s["name"] == f"{s['task']}_{s['method']}"  # not a horizon sweep or learned-policy run
         paper = PAPER.get((s["task"], s["method"])) if default_run else None
@@ -75,9 +75,13 @@ def main(argv: list[str]) -> int:
             name += " (before goal masses)"  # run before the executor's goal masses and anchor existed
         if (s.get("provenance") or {}).get("taichi", {}).get("fast_math", True):
             name += " †"  # run with Taichi fast_math on (every run before provenance was recorded)
-        print(f"| {s['task']} | {name} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
+        skills = len(s["skills"]) if s.get("skills") else ""  # the skills planned with (the search's width)
+        print(f"| {s['task']} | {name} | {skills} | {s.get('horizon', '')} | {s['episodes']} | {s['improvement_mean']:.3f} ± "
               f"{s['improvement_std']:.3f} | {100 * s['success_rate']:.0f}% | {paper_txt} | {s['plan_s_mean']:.1f} | "
               f"{s['execute_s_mean']:.1f} |")
+    print()
+    print("skills: how many skills the planner chose from (3: cut, push, roll; 5: also lift and gather; blank: not "
+          "recorded, and only cut, push and roll existed then).")
     print()
     print("† simulated with Taichi `fast_math` on (before issue 21 turned it off); instances and rollouts differ "
           "from today's by float rounding.")
