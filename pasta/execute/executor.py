@@ -518,6 +518,8 @@ class _Log:
     def __init__(self, logger: Any, sim: Any, every: int = 1) -> None:
         self.log, self.sim, self.every = logger, sim, max(1, every)
         self.env_dt = sim.cfg.dt * sim.cfg.substeps
+        # the simulator's tool set is fixed: convert each ToolSpec colour once, not on every logged step
+        self.tool_rgba = {name: _tool_rgba(sim.tool_spec(name).color) for name in sim.tool_names}
 
     def t(self, step: int) -> int:
         from pasta.io import step_time_ns
@@ -552,10 +554,8 @@ class _Log:
         for name in self.sim.tool_names:  # every tool of the simulator, drawn from its ToolSpec's primitives
             pose = (override or {}).get(name)
             pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
-            spec = self.sim.tool_spec(name)
-            color = _tool_rgba(spec.color)
-            for ent, kind, size, centre, quat in tool_shapes(spec, pose, self.sim.tool_aperture(name)):
-                prims.append(ToolPrimitive(ent, kind, size, centre, quat, color))
+            for ent, kind, size, centre, quat in tool_shapes(self.sim.tool_spec(name), pose, self.sim.tool_aperture(name)):
+                prims.append(ToolPrimitive(ent, kind, size, centre, quat, self.tool_rgba[name]))
         self.log.tools("/tools", t, prims)
 
     def step_start(self, h: int, obs: Any, labels: np.ndarray, subgoal: list[np.ndarray], step: PlanStep,
