@@ -29,9 +29,11 @@ EPILOG = """examples:
   pasta eval task=crs method=pasta horizon=5 num=20      # a longer planning horizon than the task needs
   pasta eval task=cut_rearrange method=oracle num=20
   pasta eval task=crs method=pasta skills=cut,push,roll   # plan with these skills only
+  pasta eval task=crs_distractors num=10 task.distractors=4   # a task setting -> crs_distractors_pasta_distractors4.jsonl
   pasta eval task=crs method=pasta workers=2              # two episodes at a time, in local worker processes
   pasta eval task=crs method=pasta backend=ray ray.address=auto   # episodes as Ray tasks on a cluster
 keys: task method num split(test|val) out models controller horizon skeleton skills resume threads workers,
+task.<setting> (a task config field: its own instances and result file, e.g. task.distractors=4),
 backend(local|ray) ray.address ray.num_cpus, execute.<field>; other key=value items go to the run config (planner, planner.*, device). Without skills=,
 skills with no trained weights under the models root are left out with a warning (as `pasta run`)."""
 
@@ -67,13 +69,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def result_path(out: str | Path, task: str, method: str, horizon: int, controller: str, split: str = "test",
-                skills: str = "") -> Path:
-    """``OUT/<task>_<method>[_h<H>][_learned][_skills-a-b][_val].jsonl`` (``_skills-...`` when ``skills=`` is given)."""
+                skills: str = "", task_settings: dict[str, Any] | None = None) -> Path:
+    """``OUT/<task>_<method>[_h<H>][_learned][_skills-a-b][_<setting><value>...][_val].jsonl`` (``_skills-...``
+    when ``skills=`` is given, ``_distractors4`` for ``task.distractors=4``: other instances, another file)."""
     from pasta.execute.skillset import parse_skill_names
 
     name = f"{task}_{method}" + (f"_h{horizon}" if horizon else "") + ("_learned" if controller == "learned" else "")
     names = parse_skill_names(skills)
     name += f"_skills-{'-'.join(names)}" if names else ""
+    for key, value in sorted((task_settings or {}).items()):
+        name += f"_{key}{value}"
     name += "_val" if split == "val" else ""
     return Path(out) / f"{name}.jsonl"
 
@@ -110,7 +115,8 @@ def eval_init(setup: dict[str, Any]) -> EvalState:
         torch.set_num_threads(setup["threads"])
     session = build_session(setup["task"], method=setup["method"], models=setup["models"] or None,
                             config_overrides=list(setup["config_overrides"]), execute=dict(setup["execute"]),
-                            horizon=setup["horizon"] or None, skeleton=setup["skeleton"], skills=setup["skills"] or None)
+                            horizon=setup["horizon"] or None, skeleton=setup["skeleton"], skills=setup["skills"] or None,
+                            task_settings=setup.get("task_settings"))
     sim = session.task.make_sim()  # it starts Taichi, whose settings the provenance records
     # versions, CPU, Taichi arch and compile options: results differ slightly between machines (docs/simulator.md)
     return EvalState(session, sim, provenance(sim_config=session.task.sim_config))
@@ -128,9 +134,10 @@ def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import print_skill_warning, split_overrides
     from pasta.config.overrides import build_many
     from pasta.distributed import BackendError, map_jobs, split_backend_args
-    from pasta.tasks import fixed_test_seeds, fixed_val_seeds
+    from pasta.tasks import fixed_test_seeds, fixed_val_seeds, split_task_settings
 
-    backend, items = split_backend_args(list(args.overrides))
+    task_settings, items = split_task_settings(list(args.overrides))
+    backend, items = split_backend_args(items)
     backend.check()  # a missing Ray fails before any model is loaded
     own_run, execute_kw, rest = split_overrides(items)
     mine = [f"{k}={v}" for k, v in own_run.items()]
@@ -161,11 +168,12 @@ def run(args: argparse.Namespace) -> int:
     check_int(opts.workers, "workers", low=0)
     setup = {"task": opts.task, "method": opts.method, "models": opts.models, "config_overrides": list(passthrough),
              "execute": dict(execute_kw), "horizon": opts.horizon, "skeleton": opts.skeleton, "skills": opts.skills,
-             "threads": opts.threads}
+             "threads": opts.threads, "task_settings": dict(task_settings)}
     state = eval_init(setup)  # this process's session: the result path, the summary, the episodes with workers=0
     session, machine = state.session, state.machine
     print_skill_warning(session)
-    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split, opts.skills)
+    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split, opts.skills,
+                       {k: getattr(session.task.config, k) for k in task_settings})
     check_output_file(path, "out")  # e.g. a directory of the result file's name in out=
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}

@@ -11,7 +11,7 @@ from pasta.core.errors import ConfigError
 
 HELP = ("run a task's fixed test (or validation) set with the ground-truth skill chain and the heuristic "
         "point-cloud controllers; print normalised improvement and success rate (key=value: task, num, split, "
-        "cache, json)")
+        "cache, json, task.<setting>)")
 
 
 @dataclass
@@ -24,7 +24,7 @@ class OracleArgs:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME num=20 split=test|val cache=true json=FILE")
+    parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME num=20 split=test|val cache=true json=FILE task.<setting>=VALUE")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,13 +32,16 @@ def run(args: argparse.Namespace) -> int:
     from pasta.config.validate import check_choice, check_output_file
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds, get_task
 
-    opts = build_many(args.overrides, [OracleArgs], command="pasta oracle")[0]
+    from pasta.tasks import split_task_settings
+
+    task_settings, items = split_task_settings(list(args.overrides))
+    opts = build_many(items, [OracleArgs], command="pasta oracle")[0]
     if opts.num <= 0:
         raise ConfigError(f"num must be >= 1, got {opts.num}")
     seeds = {"test": fixed_test_seeds, "val": fixed_val_seeds}[check_choice(opts.split, "split", ("test", "val"))]
     if opts.json:
         check_output_file(opts.json, "json")  # before any work
-    task = get_task(opts.task)  # unknown task -> error listing the known ones, before any work
+    task = get_task(opts.task, **task_settings)  # unknown task or setting -> error listing the known ones, before any work
 
     import numpy as np
     from rich.progress import Progress

@@ -25,8 +25,10 @@ EPILOG = """examples:
   pasta run task=crs seed=1000 method=flat                    # the Flat 3D baseline
   pasta run task=crs seed=3 planner=sampling execute.closed_loop=true
   pasta run task=crs seed=1000 skills=cut,push,roll             # plan with these skills only
+  pasta run task=crs_distractors seed=1000 task.distractors=4  # a task setting: 4 pieces that must stay put
 keys of this command: task method=pasta|sampling|flat|oracle models controller log summary horizon threads=1
-skeleton=auto|true|false execute.<field> (see docs/policies.md; the skeleton is given for crs_twice only,
+skeleton=auto|true|false task.<setting> (a task config field, e.g. task.distractors=4 for crs_distractors)
+execute.<field> (see docs/policies.md; the skeleton is given for crs_twice only,
 as in the paper), skills=a,b,c (default: every registered skill with trained weights under the models
 root; the others are left out with a warning; not used by method=oracle); every other key=value goes to
 the run config (seed, planner, planner.*)."""
@@ -71,7 +73,10 @@ def run(args: argparse.Namespace) -> int:
     from pasta.config import to_yaml
     from pasta.execute.session import build_session
 
-    own, execute_kw, rest = split_overrides(list(args.overrides))
+    from pasta.tasks import split_task_settings
+
+    task_settings, items = split_task_settings(list(args.overrides))
+    own, execute_kw, rest = split_overrides(items)
     if not own.get("task"):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
     threads, horizon = check_own(own)  # before anything is loaded or computed
@@ -81,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
         torch.set_num_threads(threads)  # see `pasta eval`: 1 is fastest on a shared CPU
     session = build_session(own["task"], method=own.get("method", "pasta"), models=own.get("models"),
                             config_overrides=rest, execute=execute_kw, horizon=horizon or None,
-                            skeleton=own.get("skeleton", "auto"), skills=own.get("skills") or None)
+                            skeleton=own.get("skeleton", "auto"), skills=own.get("skills") or None,
+                            task_settings=task_settings)
     print_skill_warning(session)
     seed = int(session.cfg.seed)
     sim = session.task.make_sim()  # starts Taichi, so the log records the runtime's real compile options

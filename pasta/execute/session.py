@@ -79,7 +79,8 @@ class Session:
                 "controller": "heuristic" if self.method == "oracle" else self.exe.controller,
                 "execute_settings": dataclasses.asdict(self.exe),
                 "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton,
-                "skills": [sk.name for sk in self.skills] if self.method != "oracle" else list(self.task.skeleton)}
+                "skills": [sk.name for sk in self.skills] if self.method != "oracle" else list(self.task.skeleton),
+                "task_config": dataclasses.asdict(self.task.config)}
 
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:
         """Plan and execute the task instance ``seed`` (generated and cached on first use) and score it."""
@@ -109,7 +110,7 @@ class Session:
 def build_session(task_name: str, *, method: str = "pasta", models: str | Path | None = None,
                   config_overrides: list[str] | None = None, execute: dict[str, Any] | None = None,
                   horizon: int | None = None, skeleton: str = "auto", plugins: Any = None,
-                  skills: str | list[str] | None = None) -> Session:
+                  skills: str | list[str] | None = None, task_settings: dict[str, Any] | None = None) -> Session:
     """Load a method's models and planner for ``task_name``.
 
     Args:
@@ -122,6 +123,8 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
         skills: the skills to plan with (``"cut,push,roll"``); ``None``: every registered skill that has
             trained weights (:func:`pasta.execute.skillset.choose_skills`; the others are left out and
             ``session.skill_choice.warning()`` names them).
+        task_settings: task config fields to set (``{"distractors": "4"}``; ``task.<setting>=`` on the
+            command line, :func:`pasta.tasks.split_task_settings`); other instances, other cache entries.
 
     Raises:
         ConfigError: the task's ground-truth chain needs a skill that is not chosen.
@@ -135,7 +138,7 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
 
     if method not in METHODS:
         raise ConfigError(f"unknown method '{method}'{did_you_mean(method, METHODS)}; known methods: {', '.join(METHODS)}")
-    task = get_task(task_name)  # unknown task -> error listing the known ones
+    task = get_task(task_name, **dict(task_settings or {}))  # unknown task (or setting) -> error listing the known ones
     plugins = plugins or get_plugins()
     root = models_root(models)
     rest = list(config_overrides or [])

@@ -30,6 +30,7 @@ __all__ = [
     "Trajectory",
     "cache_root",
     "get_task",
+    "split_task_settings",
     "piece_indices",
     "run_skill",
     "skill_observation",
@@ -48,14 +49,38 @@ def task_names() -> list[str]:
 
 
 def get_task(name: str, config=None, **overrides) -> Task:
-    """Build the registered task ``name`` (unknown names list the known ones); ``overrides`` set config fields."""
-    from pasta.core.errors import ConfigError
+    """Build the registered task ``name`` (unknown names list the known ones); ``overrides`` set config
+    fields, typed values or strings (``distractors="4"``, as ``task.distractors=4`` on the command line);
+    an unknown field names the task's settings and the closest one."""
+    from dataclasses import asdict
+
+    from pasta.config.overrides import build
     from pasta.plugins import get_plugins
 
     registry = get_plugins().tasks
     cfg = config if config is not None else registry.default_config(name)
-    for key, value in overrides.items():
-        if not hasattr(cfg, key):
-            raise ConfigError(f"task '{name}' has no setting '{key}'")
-        setattr(cfg, key, value)
+    if overrides:
+        cfg = build(type(cfg), {**asdict(cfg), **overrides}, command=f"task '{name}' (task.<setting>=)")
     return registry.create(name, cfg)
+
+
+TASK_PREFIX = "task."
+
+
+def split_task_settings(items: list[str]) -> tuple[dict[str, str], list[str]]:
+    """``task.<setting>=value`` items (a task config field, e.g. ``task.distractors=4``) apart from the rest:
+    ``({setting: value}, the other items)``; the values are checked by :func:`get_task`."""
+    from pasta.core.errors import ConfigError
+
+    settings: dict[str, str] = {}
+    rest: list[str] = []
+    for item in items:
+        key, _, value = item.partition("=")
+        if key.strip().startswith(TASK_PREFIX):
+            setting = key.strip()[len(TASK_PREFIX):]
+            if not setting:
+                raise ConfigError(f"argument {item!r}: name the task setting, e.g. task.threshold=0.8")
+            settings[setting] = value.strip()
+        else:
+            rest.append(item)
+    return settings, rest

@@ -154,15 +154,16 @@ class CRSTask(Task):
     skeleton = ("cut", "push", "roll")
     summary = "cut, push the cut piece to the spreading area, roll it flat"
     z_spread = 0.2
-    distractors = 0
+    distractors = 0  # extra pieces, when the config has no ``distractors`` setting
 
     def build(self, gen: Generation) -> None:
         floor = floor_of(gen)
         boxes = [crs_box(gen.rng, floor, z_spread=self.z_spread)]
-        boxes += distractor_boxes(gen.rng, floor, self.distractors)
+        count = int(getattr(self.config, "distractors", self.distractors))
+        boxes += distractor_boxes(gen.rng, floor, count)
         gen.start(boxes)
         gen.run("cut", 0, cut_params(gen, 0, (0.1, 0.12)))
-        z = (0.35, 0.65) if self.distractors else (0.3, 0.7)
+        z = (0.35, 0.65) if count else (0.3, 0.7)
         gen.run("push", 0, target_near(gen, 0, (0.25, 0.29), z, 0.2))
         gen.run("roll", 0)
 
@@ -210,7 +211,17 @@ class CRSTwiceTask(Task):
 
 @dataclass
 class CRSDistractorsConfig(TaskConfig):
+    """``distractors``: extra pieces that must stay put (0 to :data:`MAX_DISTRACTORS`; ``task.distractors=N``
+    on ``pasta run/eval/oracle``). The test set of the paper's setting is the default, 2."""
+
     threshold: float = 0.83
+    distractors: int = 2
+
+    def __post_init__(self) -> None:
+        from pasta.core.errors import ConfigError
+
+        if not 0 <= int(self.distractors) <= MAX_DISTRACTORS:
+            raise ConfigError(f"task setting distractors must be in 0..{MAX_DISTRACTORS}, got {self.distractors}")
 
 
 class CRSDistractorsTask(CRSTask):
@@ -218,20 +229,34 @@ class CRSDistractorsTask(CRSTask):
 
     name = "crs_distractors"
     config_class = CRSDistractorsConfig
-    summary = "CRS with 2 extra pieces that must stay where they are"
-    z_spread = 0.1
-    distractors = 2
+    summary = "CRS with 2 extra pieces that must stay where they are (task.distractors=N: 0-6)"
+    z_spread = 0.1  # the count is the config's (CRSDistractorsConfig.distractors)
+
+
+#: most distractors a scene takes: three along each of the front and back walls
+MAX_DISTRACTORS = 6
+#: least x-gap between two distractors on the same wall (DBSCAN's eps is 3 cm: they must stay separate pieces)
+DISTRACTOR_GAP = 0.06
 
 
 def distractor_boxes(rng: np.random.Generator, floor: float, num: int) -> list:
     """``num`` small cubes (side U(0.05, 0.07)) near the front/back walls (z in [0.1, 0.2] or [0.8, 0.9]),
-    away from the CRS dough, its push path and the rolled piece."""
+    away from the CRS dough, its push path and the rolled piece; they alternate between the walls, and
+    cubes on one wall keep :data:`DISTRACTOR_GAP` apart in x (x redrawn until they do; the first cube on
+    each wall never is, so two distractors draw exactly the numbers they always drew)."""
+    if num > MAX_DISTRACTORS:
+        raise ValueError(f"at most {MAX_DISTRACTORS} distractors fit along the walls, asked for {num}")
     out = []
     sides = rng.permutation([0, 1])
+    placed: dict[int, list[tuple[float, float]]] = {0: [], 1: []}  # wall -> (x, side) of its cubes
     for i in range(num):
+        wall = int(sides[i % 2])
         side = rng.uniform(0.05, 0.07)
-        z = rng.uniform(0.1, 0.18) if sides[i % 2] == 0 else rng.uniform(0.82, 0.9)
+        z = rng.uniform(0.1, 0.18) if wall == 0 else rng.uniform(0.82, 0.9)
         x = rng.uniform(0.2, 0.8)
+        while any(abs(x - x2) < (side + side2) / 2 + DISTRACTOR_GAP for x2, side2 in placed[wall]):
+            x = rng.uniform(0.2, 0.8)
+        placed[wall].append((x, side))
         out.append(((x, floor + side / 2, z), (side, side, side)))
     return out
 

@@ -10,7 +10,7 @@ _TASKS = {
     "cut_rearrange": ("CutRearrangeTask", "CutRearrangeConfig", "cut a dough box in two and move each piece to its target"),
     "crs": ("CRSTask", "CRSConfig", "cut, push the cut piece to the spreading area, roll it flat"),
     "crs_twice": ("CRSTwiceTask", "CRSTwiceConfig", "cut two pieces off a long dough, move both, flatten both (6 steps)"),
-    "crs_distractors": ("CRSDistractorsTask", "CRSDistractorsConfig", "CRS with 2 extra pieces that must stay put"),
+    "crs_distractors": ("CRSDistractorsTask", "CRSDistractorsConfig", "CRS with 2 extra pieces that must stay put (task.distractors=0-6)"),
 }
 
 
