@@ -153,6 +153,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     from pasta.core.decompose import decompose_labels, resample
     from pasta.core.shapes import check_latents
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
+    from pasta.planning.batch import planning_box
 
     if plugins is None:
         from pasta.plugins import get_plugins
@@ -198,7 +199,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
             u = encoder.encode(torch.from_numpy(np.stack(ents))).float()
             latents[name] = check_latents(u, f"the {len(ents)} encoded {name} entities (encoder {cfg.encoder.name!r})",
                                           dim=encoder.latent_dim)
-            check_training_box(latents[name], encoder, name, camera["box_margin"])
+            check_training_box(latents[name], encoder, name, camera["box_margin"], box=planning_box(encoder, skills))
     # observed pieces that already are a goal piece (Chamfer < 5e-4): never attended, matched to it
     from pasta.core.matching import unchanged_pairs
 
@@ -207,7 +208,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
                               seed=seed, skeleton=skeleton, fixed=tuple(fixed))
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     plan = planner.plan(problem).check()  # a NaN or out-of-range score/latent is an error, not a plan
-    report = confidence(plan, encoder, latents, camera)
+    report = confidence(plan, encoder, latents, camera, skills)
     plan = dataclasses.replace(plan, info={**plan.info, "confidence": report["confidence"], "flags": report["flags"],
                                            "input": {"frame": frame.describe(),
                                                      "preprocess": camera["preprocess"].to_dict(),
@@ -339,13 +340,14 @@ def point_labels(loaded: Any, kept: Any, kept_points: Any, decomposed: Any, labe
     return out.reshape(loaded.shape)
 
 
-def check_training_box(latents: Any, encoder: Any, name: str, margin: float) -> None:
-    """Refuse entities whose centroid ``t`` lies more than ``margin`` outside the encoder's box of training
-    centroids (the planner clamps sub-goals into it, so such a plan is silently wrong)."""
+def check_training_box(latents: Any, encoder: Any, name: str, margin: float, box: Any = None) -> None:
+    """Refuse entities whose centroid ``t`` lies more than ``margin`` outside ``box`` (default: the encoder's
+    box of training centroids; :func:`pasta.planning.batch.planning_box` widens it by the skills' own): the
+    planner clamps sub-goals into these boxes, so such a plan is silently wrong."""
     import numpy as np
 
     t = latents[:, encoder.z_dim:].detach().cpu().numpy().astype(np.float64)
-    low, high = np.asarray(encoder.t_low, np.float64), np.asarray(encoder.t_high, np.float64)
+    low, high = (np.asarray(b, np.float64) for b in (box or (encoder.t_low, encoder.t_high)))
     outside = np.maximum(low - margin - t, 0) + np.maximum(t - high - margin, 0)
     bad = np.flatnonzero(outside.max(1) > 0)
     if len(bad):
@@ -358,29 +360,34 @@ def check_training_box(latents: Any, encoder: Any, name: str, margin: float) -> 
                          "preprocess=camera, another frame units=, up=, transform=")
 
 
-def latent_distances(latents: Any, encoder: Any) -> list[dict[str, float]]:
+def latent_distances(latents: Any, encoder: Any, box: Any = None) -> list[dict[str, float]]:
     """Per latent ``(K, D)``: ``z_norm`` (Mahalanobis distance of ``z`` under the prior N(0, I)) and
-    ``t_outside`` (metres of ``t`` outside the box of training centroids, 0 inside)."""
+    ``t_outside`` (metres of ``t`` outside ``box``, default the encoder's box of training centroids, 0 inside)."""
     import numpy as np
 
     u = np.asarray(latents, dtype=np.float64).reshape(-1, encoder.latent_dim)
     z, t = u[:, :encoder.z_dim], u[:, encoder.z_dim:]
-    low, high = np.asarray(encoder.t_low, np.float64), np.asarray(encoder.t_high, np.float64)
+    low, high = (np.asarray(b, np.float64) for b in (box or (encoder.t_low, encoder.t_high)))
     out = np.linalg.norm(np.maximum(low - t, 0) + np.maximum(t - high, 0), axis=1)
     return [{"z_norm": round(float(a), 6), "t_outside": round(float(b), 6)} for a, b in zip(np.linalg.norm(z, axis=1), out)]
 
 
-def confidence(plan: Any, encoder: Any, latents: dict, camera: dict) -> dict[str, Any]:
+def confidence(plan: Any, encoder: Any, latents: dict, camera: dict, skills: Any = ()) -> dict[str, Any]:
     """How far the plan's latents sit from the training distribution, and the flags it raises.
 
     Returns ``{"confidence": {...}, "flags": [{"kind", "message"}, ...]}``; kind ``unreachable`` (a step's
     feasibility below ``check.min_feasibility`` or the final cost above ``check.max_cost``: exit code 3) or
     ``out_of_distribution`` (a latent with ``|z|`` above ``check.max_z``: a warning).
     """
-    conf: dict[str, Any] = {name: latent_distances(latents[name], encoder) for name in ("obs", "goal")}
+    from pasta.planning.batch import centroid_box, planning_box
+
+    box = planning_box(encoder, skills)
+    by_name = {sk.name: sk for sk in skills}
+    conf: dict[str, Any] = {name: latent_distances(latents[name], encoder, box) for name in ("obs", "goal")}
     steps = []
     for step in plan.steps:
-        d = latent_distances(step.subgoal, encoder)
+        own = centroid_box(encoder, by_name[step.skill]) if step.skill in by_name else None
+        d = latent_distances(step.subgoal, encoder, own)
         steps.append({"skill": step.skill, "feasibility": step.feasibility,
                       "z_norm": max(x["z_norm"] for x in d), "t_outside": max(x["t_outside"] for x in d)})
     conf["steps"] = steps

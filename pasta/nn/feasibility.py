@@ -32,6 +32,9 @@ class SetFeasibility(nn.Module):
         self.phi_in = mlp([latent_dim, hidden, hidden], last_activation=True)
         self.phi_out = mlp([latent_dim, hidden, hidden], last_activation=True)
         self.head = mlp([2 * hidden, hidden, hidden, 1])
+        #: ``(low, high)`` centroids of the produced entities it was trained on (set when loaded; see
+        #: :attr:`pasta.core.Skill.output_box`), ``None`` when not recorded
+        self.output_box: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
     def config(self) -> dict[str, int]:
         return {"n_in": self.n_in, "n_out": self.n_out, "latent_dim": self.latent_dim, "hidden": self.hidden}

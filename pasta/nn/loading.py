@@ -38,6 +38,8 @@ def load_feasibility(
     c = ckpt.config
     model = SetFeasibility(c["n_in"], c["n_out"], c["latent_dim"], c["hidden"])
     model.load_state_dict(ckpt.tensors)
+    box = c.get("output_box")  # networks trained before it was recorded have none (pasta.core.Skill.output_box)
+    model.output_box = None if box is None else (tuple(float(v) for v in box[0]), tuple(float(v) for v in box[1]))
     return model.requires_grad_(False).to(device).eval()
 
 

@@ -35,6 +35,8 @@ class Group:
         kept: per step ``h``, ``(B, K_h - N_h)`` indices (sorted) of the untouched entities.
         latents: ``(B, sum_h M_h, D)`` the produced entities of all steps, step after step.
         fixed_pos: ``(B, F)`` where each fixed entity (:attr:`CandidateBatch.fixed`) ends in the final set.
+        t_low, t_high: ``(B, sum_h M_h, 3)`` the centroid box of every produced entity, that of its step's
+            skill (:func:`centroid_box`); ``None``: the encoder's box for all (no skill records its own).
     """
 
     signature: tuple[tuple[int, int], ...]
@@ -43,6 +45,14 @@ class Group:
     kept: list[torch.Tensor]
     latents: torch.Tensor
     fixed_pos: torch.Tensor | None = None
+    t_low: torch.Tensor | None = None
+    t_high: torch.Tensor | None = None
+
+    def clamp(self, latents: torch.Tensor, encoder: Encoder) -> torch.Tensor:
+        """``latents (B, sum_h M_h, D)`` with every centroid clamped into its entity's box (a copy)."""
+        if self.t_low is None:
+            return encoder.clamp(latents)
+        return clamp_centroids(latents, self.t_low, self.t_high, encoder.z_dim)
 
     @property
     def size(self) -> int:
@@ -69,6 +79,8 @@ class Group:
             [k[index] for k in self.kept],
             self.latents[index] if latents is None else latents,
             None if self.fixed_pos is None else self.fixed_pos[index],
+            None if self.t_low is None else self.t_low[index],
+            None if self.t_high is None else self.t_high[index],
         )
 
 
@@ -119,6 +131,50 @@ def signature_of(sequence: Sequence[str], skills: Mapping[str, Skill]) -> tuple[
     return tuple((skills[n].n_in, skills[n].n_out) for n in sequence)
 
 
+def centroid_box(encoder: Encoder, skill: Skill) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """``(low, high)`` box of the centroids of ``skill``'s sub-goals: the encoder's box of training
+    centroids widened to hold the skill's own (:attr:`pasta.core.Skill.output_box`, when recorded)."""
+    low, high = tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
+    own = skill.output_box
+    if own is None:
+        return low, high
+    return tuple(map(min, low, own[0])), tuple(map(max, high, own[1]))
+
+
+def planning_box(encoder: Encoder, skills: Sequence[Skill]) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """``(low, high)``: the union of the encoder's centroid box and every skill's (:func:`centroid_box`):
+    where the models have seen pieces, hence where an observed or goal piece may lie."""
+    low, high = tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
+    for skill in skills:
+        lo, hi = centroid_box(encoder, skill)
+        low, high = tuple(map(min, low, lo)), tuple(map(max, high, hi))
+    return low, high
+
+
+def clamp_to_skill(latents: torch.Tensor, encoder: Encoder, skill: Skill) -> torch.Tensor:
+    """``latents (..., D)`` produced by a step of ``skill`` with ``t`` clamped into :func:`centroid_box`."""
+    if skill.output_box is None:
+        return encoder.clamp(latents)
+    low, high = (torch.tensor(b, dtype=latents.dtype, device=latents.device) for b in centroid_box(encoder, skill))
+    return clamp_centroids(latents, low, high, encoder.z_dim)
+
+
+def clamp_centroids(latents: torch.Tensor, low: torch.Tensor, high: torch.Tensor, z_dim: int) -> torch.Tensor:
+    """``latents (..., D)`` with ``t = latents[..., z_dim:]`` clamped into ``[low, high]`` (broadcast; a copy)."""
+    t = torch.maximum(torch.minimum(latents[..., z_dim:], high.to(latents)), low.to(latents))
+    return torch.cat([latents[..., :z_dim], t], -1)
+
+
+def _slot_boxes(sequence: Sequence[str], skills: Mapping[str, Skill], encoder: Encoder) -> tuple[torch.Tensor, torch.Tensor]:
+    """``(sum_h M_h, 3)`` low and high centroid bounds of every entity ``sequence`` produces, step after step."""
+    low, high = [], []
+    for name in sequence:
+        lo, hi = centroid_box(encoder, skills[name])
+        low += [lo] * skills[name].n_out
+        high += [hi] * skills[name].n_out
+    return torch.tensor(low, dtype=torch.float64), torch.tensor(high, dtype=torch.float64)
+
+
 def sample_candidates(
     start: torch.Tensor,
     goal: torch.Tensor,
@@ -152,6 +208,8 @@ def sample_candidates(
     for s in sequences:
         names.extend(n for n in s if n not in names)
     dim = start.shape[-1]
+    # per-entity centroid boxes only when some skill records its own (otherwise the encoder's, as always)
+    own_boxes = any(skills[n].output_box is not None for n in names)
     fixed = tuple((int(i), int(j)) for i, j in fixed)
     n_fixed = len(fixed)
     parts: dict[tuple[tuple[int, int], ...], list[tuple]] = {}
@@ -175,7 +233,18 @@ def sample_candidates(
             k += m - n
         total = sum(m for _, m in sig)
         lat = encoder.sample_prior(num_samples * total, generator).to(start.dtype).reshape(num_samples, total, dim)
-        parts.setdefault(sig, []).append((si, inputs, kept, encoder.clamp(lat), pos))
+        if own_boxes:  # centroids drawn in the encoder's box, mapped into each slot's box (same where they agree)
+            low, high = (b.to(start.dtype).expand(num_samples, -1, -1) for b in _slot_boxes(seq, skills, encoder))
+            e_low, e_high = (torch.tensor(b, dtype=start.dtype) for b in (encoder.t_low, encoder.t_high))
+            z = encoder.z_dim
+            t = lat[..., z:]
+            mapped = low + (t - e_low) / (e_high - e_low).clamp(min=1e-12) * (high - low)
+            same = (low == e_low) & (high == e_high)
+            lat = clamp_centroids(torch.cat([lat[..., :z], torch.where(same, t, mapped)], -1), low, high, z)
+            box = (low, high)
+        else:
+            lat, box = encoder.clamp(lat), (None, None)
+        parts.setdefault(sig, []).append((si, inputs, kept, lat, pos, box))
     groups = []
     for sig, items in parts.items():
         groups.append(
@@ -186,6 +255,8 @@ def sample_candidates(
                 [torch.cat([it[2][h] for it in items]) for h in range(len(sig))],
                 torch.cat([it[3] for it in items]),
                 torch.cat([it[4] for it in items]) if n_fixed else None,
+                torch.cat([it[5][0] for it in items]) if own_boxes else None,
+                torch.cat([it[5][1] for it in items]) if own_boxes else None,
             )
         )
     return CandidateBatch(start, goal, sequences, names, groups, fixed=fixed)

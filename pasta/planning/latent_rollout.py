@@ -14,6 +14,7 @@ import torch
 from pasta.core import Plan, PlanningProblem, PlanStep, kept_indices
 from pasta.core.errors import InputError
 from pasta.core.plan import as_latents
+from pasta.planning.batch import clamp_to_skill
 from pasta.planning.clearance import Clearance
 from pasta.planning.objective import plan_score
 
@@ -113,7 +114,8 @@ def build_plan(
     """
     info = dict(info or {})
     with torch.no_grad():
-        batched = [problem.encoder.clamp(s.detach()).unsqueeze(0) for s in subgoals]
+        batched = [clamp_to_skill(s.detach(), problem.encoder, problem.skill_map[name]).unsqueeze(0)
+                   for name, s in zip(skeleton, subgoals)]
         clearance = (Clearance.from_problem(problem.encoder, problem.obs, problem.goal, skills=problem.skills)
                      if clearance_weight > 0 else None)
         result = rollout(problem, skeleton, attention, batched, clearance)

@@ -163,9 +163,13 @@ class _Optimiser:
         return self._adam() if self.method == "adam" else self._cem()
 
     # -- gradient: Adam on the sub-goal latents ----------------------------------------------------
+    def _clamp(self, lat: list[torch.Tensor]) -> list[torch.Tensor]:
+        """Every group's latents with each centroid in its entity's box (:meth:`Group.clamp`)."""
+        return [g.clamp(x, self.encoder) for g, x in zip(self.batch.groups, lat)]
+
     def _adam(self) -> list[torch.Tensor]:
         cfg, iters = self.cfg, self.cfg.iterations
-        lat = [self.encoder.clamp(x) for x in self.batch.latents()]
+        lat = self._clamp(self.batch.latents())
         m = [torch.zeros_like(x) for x in lat]
         v = [torch.zeros_like(x) for x in lat]
         milestones = set()
@@ -187,8 +191,8 @@ class _Optimiser:
                 mi.mul_(b1).add_(g, alpha=1 - b1)
                 vi.mul_(b2).addcmul_(g, g, value=1 - b2)
                 upd = (mi / c1) / ((vi / c2).sqrt() + cfg.adam_eps)
-                new.append(self.encoder.clamp(x.detach() - cfg.lr * upd))
-            lat = new
+                new.append(x.detach() - cfg.lr * upd)
+            lat = self._clamp(new)
             if step in milestones:
                 keep = self._halve(self._log_score)
                 lat = [x[k] for x, k in zip(lat, keep)]
@@ -228,7 +232,7 @@ class _Optimiser:
     # -- no gradient: cross-entropy method ------------------------------------------------------------
     def _cem(self) -> list[torch.Tensor]:
         """Elitist CEM: one Gaussian per (sequence, attention structure); its elites stay, the rest are redrawn."""
-        lat = [self.encoder.clamp(x) for x in self.batch.latents()]
+        lat = self._clamp(self.batch.latents())
         clusters = []
         for g in self.batch.groups:
             key = torch.cat([g.seq[:, None], *g.inputs], 1)
@@ -241,7 +245,7 @@ class _Optimiser:
             new = []
             for x, r, cl in zip(lat, self._log_score, clusters):
                 new.append(self._cem_step(x, r, cl))
-            lat = new
+            lat = self._clamp(new)
         self._store(lat)
         return scores
 
@@ -258,7 +262,7 @@ class _Optimiser:
         var = torch.zeros_like(mean).index_add_(0, cluster, dev) / (count - 1).clamp(min=1)
         std = var.sqrt().clamp(min=self.min_std)
         noise = torch.randn(x.shape, generator=self.gen, dtype=x.dtype)
-        drawn = self.encoder.clamp(mean[cluster] + std[cluster] * noise)
+        drawn = mean[cluster] + std[cluster] * noise  # clamped into the entities' boxes by the caller
         return torch.where(elite[:, None, None], x, drawn) if b else x
 
 

@@ -215,6 +215,9 @@ class Task(TaskInterface):
     """
 
     config_class: ClassVar[type] = TaskConfig
+    #: config fields that only change the scoring (left out of the cache key); a task whose
+    #: :meth:`score` reads settings of its own adds them
+    scoring_fields: ClassVar[tuple[str, ...]] = SCORING_FIELDS
 
     def __init__(self, config: Any = None, sim_config: Any = None) -> None:
         from pasta.sim import SimConfig
@@ -258,7 +261,7 @@ class Task(TaskInterface):
             # its scenes stand up) shape the goals too
             for tool in (skill.tool, *skill.demo_tools()):
                 tools[tool] = repr(plugins.tools.info(tool).spec)
-        config = {k: v for k, v in asdict(self.config).items() if k not in SCORING_FIELDS}
+        config = {k: v for k, v in asdict(self.config).items() if k not in self.scoring_fields}
         blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config), "skills": skills,
                            "tools": tools, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)
         return hashlib.sha1(blob.encode()).hexdigest()[:12]

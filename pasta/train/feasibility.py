@@ -21,7 +21,7 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-from pasta.core.errors import InputError
+from pasta.core.errors import ConfigError, InputError
 from pasta.nn.feasibility import SetFeasibility
 from pasta.nn.loading import FEASIBILITY_MODULE
 from pasta.train.latents import EncodedDemo, changed_entities
@@ -42,6 +42,10 @@ class FeasibilityTrainConfig:
             that cannot carry dough far (roll, cut): without them the network accepts an output a few
             centimetres from where the skill leaves it, and plans inherit that slack. 0 (default) for push.
         shift_min, shift_max: the displacement range of those negatives.
+        shift_axes: ``xz`` (default: a direction in the table plane) or ``xyz`` (any direction in space):
+            for skills whose output height is the point, e.g. the lift, whose pieces end on the raised
+            board; with table-plane shifts only its network rated a piece "set down" at floor height, under
+            the board, as feasible as one on it (LiftSpread seed 1000: f 0.998).
         z_noise, t_noise: std of the Gaussian noise on ``z`` and ``t`` of positives (training only).
         unchanged_threshold: Chamfer below which an entity counts as unchanged.
         match_points: points per entity used for that Chamfer.
@@ -59,6 +63,7 @@ class FeasibilityTrainConfig:
     shift_per_positive: int = 0
     shift_min: float = 0.03
     shift_max: float = 0.1
+    shift_axes: str = "xz"
     z_noise: float = 0.02
     t_noise: float = 0.01
     unchanged_threshold: float = 5e-4
@@ -72,10 +77,13 @@ class FeasibilityTrainConfig:
 
 
 def train_dict(cfg: Any) -> dict[str, Any]:
-    """``asdict(cfg)`` without ``flat`` when it is false, so checkpoints of entity runs keep their old config."""
+    """``asdict(cfg)`` without ``flat`` when it is false and ``shift_axes`` when it is ``xz``, so checkpoints
+    of earlier runs keep their old config (and resume)."""
     d = asdict(cfg)
     if not d.get("flat", True):
         d.pop("flat")
+    if d.get("shift_axes") == "xz":
+        d.pop("shift_axes")
     return d
 
 
@@ -118,15 +126,22 @@ def hard_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, prior: 
 
 
 def shifted_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, z_dim: int, low: float, high: float,
-                      generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor]:
-    """``copies`` versions of each tuple whose produced entities all move by one random (x, z) offset of
-    length in ``[low, high]`` (centroid ``t = u[z_dim:z_dim+3]``, y is up)."""
+                      generator: torch.Generator, axes: str = "xz") -> tuple[torch.Tensor, torch.Tensor]:
+    """``copies`` versions of each tuple whose produced entities all move by one random offset of length in
+    ``[low, high]`` (centroid ``t = u[z_dim:z_dim+3]``, y is up): in the table plane (``axes="xz"``, the
+    draws of earlier versions) or in any direction (``"xyz"``, uniform on the sphere)."""
+    if axes not in ("xz", "xyz"):
+        raise ConfigError(f"shift_axes must be 'xz' or 'xyz', got {axes!r}")
     u_in, u_out = u_in.repeat(copies, 1, 1), u_out.repeat(copies, 1, 1).clone()
     b = u_out.shape[0]
-    angle = torch.rand(b, generator=generator) * 2 * torch.pi
+    if axes == "xz":
+        angle = torch.rand(b, generator=generator) * 2 * torch.pi
+        direction = torch.stack([torch.cos(angle), torch.zeros(b), torch.sin(angle)], 1)
+    else:
+        direction = torch.randn(b, 3, generator=generator)
+        direction = direction / direction.norm(dim=1, keepdim=True).clamp(min=1e-12)
     length = low + torch.rand(b, generator=generator) * (high - low)
-    u_out[:, :, z_dim] += (length * torch.cos(angle))[:, None]
-    u_out[:, :, z_dim + 2] += (length * torch.sin(angle))[:, None]
+    u_out[:, :, z_dim:z_dim + 3] += (length[:, None] * direction)[:, None, :]
     return u_in, u_out
 
 
@@ -148,17 +163,22 @@ class FeasibilityTask:
         gen = torch.Generator().manual_seed(seed + 1)
         self.val_hard = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive, self.prior, gen)
         # near misses, always measured (val_auc_shift), trained on only with shift_per_positive > 0
-        self.val_shift = shifted_negatives(self.val_in, self.val_out, 2, self.z_dim, cfg.shift_min, cfg.shift_max, gen)
+        self.val_shift = shifted_negatives(self.val_in, self.val_out, 2, self.z_dim, cfg.shift_min, cfg.shift_max, gen,
+                                           cfg.shift_axes)
         if cfg.shift_per_positive > 0:
             self.val_hard = _cat(self.val_hard, self.val_shift)
         m = len(self.val_in)
         self.val_random = (self.prior(m * n_in, gen).view(m, n_in, -1), self.prior(m * n_out, gen).view(m, n_out, -1))
+        # where the skill's produced entities lay (all positives): the planner's box for its sub-goals
+        t_out = torch.cat([self.train_out, self.val_out])[..., self.z_dim:].reshape(-1, 3)
+        self.output_box = [[float(v) for v in t_out.amin(0)], [float(v) for v in t_out.amax(0)]]
 
     def prior(self, n: int, generator: torch.Generator) -> torch.Tensor:
         return self.encoder.sample_prior(n, generator)
 
     def config(self) -> dict[str, Any]:
-        return {**self.model.config(), "skill": self.skill, **scope_config(self.cfg), "train": train_dict(self.cfg)}
+        return {**self.model.config(), "skill": self.skill, **scope_config(self.cfg), "train": train_dict(self.cfg),
+                "output_box": self.output_box}
 
     def batches(self, batch_size: int, generator: torch.Generator):
         order = torch.randperm(len(self.train_in), generator=generator)
@@ -175,7 +195,7 @@ class FeasibilityTask:
         hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
         if self.cfg.shift_per_positive > 0:
             hard = _cat(hard, shifted_negatives(u_in, u_out, self.cfg.shift_per_positive, self.z_dim,
-                                                self.cfg.shift_min, self.cfg.shift_max, generator))
+                                                self.cfg.shift_min, self.cfg.shift_max, generator, self.cfg.shift_axes))
         b, n, m = len(batch), u_in.shape[1], u_out.shape[1]
         rand = (self.prior(b * n, generator).view(b, n, -1), self.prior(b * m, generator).view(b, m, -1))
         return self._weighted((u_in, u_out), hard, rand)

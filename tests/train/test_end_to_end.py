@@ -44,6 +44,10 @@ def test_trained_models_plug_into_planning_contracts(models, three_demos):
     assert obs.shape == (1, 5) and goal.shape == (2, 5)
     f = cut.feasibility(obs[None], goal[None])
     assert f.shape == (1,) and 0 <= float(f) <= 1
+    # the box of the produced pieces' centroids is recorded and reaches the skill (the planner's box for it)
+    low, high = (np.array(b) for b in cut.output_box)
+    assert np.all(low <= high) and np.all(low <= goal[:, 2:].numpy().max(0) + 1e-6)
+    assert np.all(goal[:, 2:].numpy().min(0) <= high + 1e-6) and high[1] < 0.2  # pieces on the floor
     assert cost.set_cost(obs[None], goal[None]).shape == (1,)
 
 

@@ -1,0 +1,75 @@
+"""A skill's own centroid box (``Skill.output_box``): its sub-goals are drawn and kept in the union of that
+box and the encoder's; skills without one plan exactly as before."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+import torch
+
+from pasta.planning import build_plan, sample_candidates
+from pasta.planning.batch import centroid_box, clamp_to_skill
+from pasta.plugins import get_plugins
+from pasta.plugins.analytic import analytic_problem
+from pasta.plugins.checks import configured
+
+# the analytic encoder's box is (0.1, 0, 0.1)-(0.9, 0.2, 0.9); "move" sets pieces down higher up, as a lift
+# onto a raised board does
+RAISED = ((0.3, 0.3, 0.4), (0.5, 0.5, 0.6))
+
+
+def with_box(problem, name: str = "move", box=RAISED):
+    problem.skill_map[name].feasibility_model = SimpleNamespace(output_box=box)  # the analytic skills ignore it
+    return problem
+
+
+def test_box_is_the_union_with_the_encoders():
+    p = with_box(analytic_problem())
+    assert centroid_box(p.encoder, p.skill_map["move"]) == ((0.1, 0.0, 0.1), (0.9, 0.5, 0.9))
+    assert centroid_box(p.encoder, p.skill_map["split"]) == (tuple(p.encoder.t_low), tuple(p.encoder.t_high))
+    far = torch.tensor([[1.0, 0.0, 0.7, 0.9, 0.5]])  # y = 0.9: above both boxes
+    assert float(clamp_to_skill(far, p.encoder, p.skill_map["move"])[0, 3]) == pytest.approx(0.5)
+    assert float(clamp_to_skill(far, p.encoder, p.skill_map["split"])[0, 3]) == pytest.approx(0.2)
+
+
+def test_draws_fill_the_skills_box_and_leave_the_others_unchanged():
+    plain = analytic_problem()
+    boxed = with_box(analytic_problem())
+    seqs = [("move",), ("flatten",), ("split", "move")]
+    a = sample_candidates(plain.obs, plain.goal, seqs, plain.skill_map, plain.encoder, 256, torch.Generator().manual_seed(0))
+    b = sample_candidates(boxed.obs, boxed.goal, seqs, boxed.skill_map, boxed.encoder, 256, torch.Generator().manual_seed(0))
+    for ga, gb in zip(a.groups, b.groups):
+        assert ga.t_low is None and gb.t_low is not None
+        for si, seq in enumerate(seqs):
+            rows = gb.seq == si
+            if not bool(rows.any()):
+                continue
+            slots = [name for name in seq for _ in range(boxed.skill_map[name].n_out)]
+            for j, name in enumerate(slots):
+                ya, yb = ga.latents[rows, j, 3], gb.latents[rows, j, 3]
+                if name == "move":  # spread over the union box: many above the encoder's 0.2
+                    assert float(yb.max()) <= 0.5 + 1e-6 and float((yb > 0.2).float().mean()) > 0.4
+                else:  # the very same draws as without any box
+                    assert torch.equal(ya, yb)
+            assert all(torch.equal(x, y) for x, y in zip(ga.inputs, gb.inputs))
+
+
+@pytest.mark.parametrize("name", ["exhaustive", "sampling"])
+def test_optimised_subgoals_stay_in_their_boxes(name):
+    planner = configured(get_plugins().planners, name, {"iterations": 20, "num_samples": 32})
+    # a goal piece high up: "move" can reach it, the encoder's box alone cannot hold it
+    p = with_box(analytic_problem(goal=torch.tensor([[1.0, 0.0, 0.7, 0.45, 0.5]]), skeleton=("move",)))
+    plan = planner.plan(p)
+    y = float(torch.as_tensor(plan.steps[0].subgoal)[0, 3])
+    assert 0.2 < y <= 0.5 + 1e-6  # above the encoder's box, inside the skill's
+    same = build_plan(p, plan.skills, [s.inputs for s in plan.steps], [torch.as_tensor(s.subgoal) for s in plan.steps],
+                      planner=name, cost_weight=planner.config.cost_weight, floor=planner.config.feasibility_floor)
+    assert same.score == pytest.approx(plan.score)  # rollout clamps with the same box
+
+
+def test_plans_without_boxes_are_unchanged():
+    planner = configured(get_plugins().planners, "exhaustive", {"iterations": 10, "num_samples": 16})
+    p = analytic_problem()
+    p.skill_map["flatten"].feasibility_model = SimpleNamespace(output_box=None)
+    assert planner.plan(p).to_json(timings=False) == planner.plan(analytic_problem()).to_json(timings=False)
