@@ -32,7 +32,8 @@ class LiftConfig:
             pass through a thin bottom layer of dough).
         slow_distance: the plate slows down linearly over this last distance of each move.
         tolerance: done with a move when within this of its target.
-        surface_y: expert: height of the surface the dough is set on (default: the board's top).
+        surface_y: expert: height of the surface the dough is set on (default: the board's top);
+            heuristic: the lowest surface it sets down on (a decoded goal's bottom may lie lower).
         target_x_min, target_x_max, target_z_min, target_z_max: expert sampling box of the piece's
             target centroid (default: on the board, away from its edges).
     """

@@ -11,7 +11,9 @@ its top ``scoop_depth`` above the piece's bottom. One execution has three phases
 
 The expert gets the target centroid ``(target_x, target_z)`` and the surface height ``surface_y``; the
 heuristic controller reads them off the goal piece (its centroid and its bottom, the 1st percentile of
-y: the goal rests on the surface).
+y: the goal rests on the surface), but never sets down below the config's ``surface_y`` (the board's top):
+a planned sub-goal is a decoded latent, whose bottom can lie 2 cm under its true one, and carrying the
+piece that low drove it into the board's edge until the step limit (LiftSpread seed 1000).
 """
 
 from __future__ import annotations
@@ -58,7 +60,7 @@ class LiftController(Controller):
                 raise InputError("lift controller: the goal piece is empty")
             goal = np.asarray(obs.goal, np.float64)
             self.target = goal[:, [0, 2]].mean(0)
-            self.surface = bottom(goal)
+            self.surface = max(bottom(goal), float(self.cfg.surface_y))
         self.phase = "rise"
 
     def _speed(self, distance: float) -> float:
