@@ -39,6 +39,20 @@ def default_planner(task: str, method: str) -> str | None:
     return DEFAULT_PLANNER.get(method)
 
 
+def setting_changes(summary: dict) -> str:
+    """``"distractors=4"`` for a run with task settings (``task.<setting>=``) other than the task's defaults
+    (from the summary's ``task_config``; runs before it was recorded have none)."""
+    given = summary.get("task_config") or {}
+    if not given:
+        return ""
+    from dataclasses import asdict
+
+    from pasta.tasks import get_task
+
+    default = asdict(get_task(summary["task"]).config)
+    return ", ".join(f"{k}={v}" for k, v in sorted(given.items()) if k in default and default[k] != v)
+
+
 def rows(directory: Path, split: str = "test") -> list[dict]:
     out = []
     for path in sorted(directory.glob("*.json")):
@@ -59,6 +73,8 @@ def main(argv: list[str]) -> int:
     print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for s in rows(directory, split):
         default_run = s["name"] == f"{s['task']}_{s['method']}"  # not a horizon sweep or learned-policy run
+        changed = setting_changes(s)
+        default_run = default_run and not changed
         paper = PAPER.get((s["task"], s["method"])) if default_run else None
         paper_txt = f"{paper[0]:.3f} / {100 * paper[1]:.0f}%" if paper else ""
         name = s["method"] + (" (learned)" if s.get("controller") == "learned" else "")
@@ -66,6 +82,8 @@ def main(argv: list[str]) -> int:
             name += f", planner {s['planner']}"  # a run with planner=NAME other than the method's default
         if s["task"] == "crs_twice" and s["method"] != "oracle" and s.get("skeleton_given") is False:
             name += ", no skeleton"  # the skeleton is given for crs_twice by default, as in the paper
+        if changed:
+            name += f", {changed}"  # task.<setting>= (e.g. the distractor count)
         if s.get("controller") == "learned" and (s.get("execute_settings") or {}).get("regress_stop") == "off":
             name += ", regression stop off"  # execute.regress_stop=off: the learned policies' own stop only
         settings = s.get("planner_settings") or {}

@@ -153,7 +153,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     from pasta.core.decompose import decompose_labels, resample
     from pasta.core.shapes import check_latents
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
-    from pasta.planning.batch import planning_box
+    from pasta.planning.batch import training_boxes
 
     if plugins is None:
         from pasta.plugins import get_plugins
@@ -199,7 +199,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
             u = encoder.encode(torch.from_numpy(np.stack(ents))).float()
             latents[name] = check_latents(u, f"the {len(ents)} encoded {name} entities (encoder {cfg.encoder.name!r})",
                                           dim=encoder.latent_dim)
-            check_training_box(latents[name], encoder, name, camera["box_margin"], box=planning_box(encoder, skills))
+            check_training_box(latents[name], encoder, name, camera["box_margin"], boxes=training_boxes(encoder, skills))
     # observed pieces that already are a goal piece (Chamfer < 5e-4): never attended, matched to it
     from pasta.core.matching import unchanged_pairs
 
@@ -340,35 +340,48 @@ def point_labels(loaded: Any, kept: Any, kept_points: Any, decomposed: Any, labe
     return out.reshape(loaded.shape)
 
 
-def check_training_box(latents: Any, encoder: Any, name: str, margin: float, box: Any = None) -> None:
-    """Refuse entities whose centroid ``t`` lies more than ``margin`` outside ``box`` (default: the encoder's
-    box of training centroids; :func:`pasta.planning.batch.planning_box` widens it by the skills' own): the
-    planner clamps sub-goals into these boxes, so such a plan is silently wrong."""
+def _outside(t: Any, boxes: Any, margin: float = 0.0) -> tuple[Any, Any]:
+    """Per centroid ``t (K, 3)``: the per-axis distance ``(K, 3)`` outside its nearest box (more than
+    ``margin`` out), and that box's index ``(K,)``."""
+    import numpy as np
+
+    per_box = np.stack([np.maximum(np.asarray(lo) - margin - t, 0) + np.maximum(t - np.asarray(hi) - margin, 0)
+                        for lo, hi in boxes])  # (B, K, 3)
+    nearest = np.argmin(np.linalg.norm(per_box, axis=2), axis=0)
+    return per_box[nearest, np.arange(len(t))], nearest
+
+
+def check_training_box(latents: Any, encoder: Any, name: str, margin: float, boxes: Any = None) -> None:
+    """Refuse entities whose centroid ``t`` lies more than ``margin`` outside every box of ``boxes``
+    (default: the encoder's box of training centroids; :func:`pasta.planning.batch.training_boxes` adds the
+    skills' own): the planner clamps sub-goals into these boxes, so such a plan is silently wrong."""
     import numpy as np
 
     t = latents[:, encoder.z_dim:].detach().cpu().numpy().astype(np.float64)
-    low, high = (np.asarray(b, np.float64) for b in (box or (encoder.t_low, encoder.t_high)))
-    outside = np.maximum(low - margin - t, 0) + np.maximum(t - high - margin, 0)
+    boxes = boxes or [(encoder.t_low, encoder.t_high)]
+    outside, nearest = _outside(t, boxes, margin)
     bad = np.flatnonzero(outside.max(1) > 0)
     if len(bad):
         k = int(bad[np.argmax(outside[bad].max(1))])
         axis = "xyz"[int(np.argmax(outside[k]))]
+        low, high = boxes[int(nearest[k])]
         box = ", ".join(f"{a} {lo:.3f}..{hi:.3f}" for a, lo, hi in zip("xyz", low, high))
+        more = f" (the nearest of {len(boxes)}: the encoder's and the skills' own)" if len(boxes) > 1 else ""
         raise InputError(f"{name} cloud: {len(bad)} of {len(t)} pieces lie outside the box the models were trained on "
                          f"(piece {k} centroid ({t[k, 0]:.3f}, {t[k, 1]:.3f}, {t[k, 2]:.3f}) is {outside[k].max():.3f} "
-                         f"out in {axis}; box {box}, check.box_margin={margin:g}); a top-down camera view needs "
+                         f"out in {axis}; box {box}{more}, check.box_margin={margin:g}); a top-down camera view needs "
                          "preprocess=camera, another frame units=, up=, transform=")
 
 
-def latent_distances(latents: Any, encoder: Any, box: Any = None) -> list[dict[str, float]]:
+def latent_distances(latents: Any, encoder: Any, boxes: Any = None) -> list[dict[str, float]]:
     """Per latent ``(K, D)``: ``z_norm`` (Mahalanobis distance of ``z`` under the prior N(0, I)) and
-    ``t_outside`` (metres of ``t`` outside ``box``, default the encoder's box of training centroids, 0 inside)."""
+    ``t_outside`` (metres of ``t`` outside the nearest of ``boxes``, default the encoder's box of training
+    centroids; 0 inside one)."""
     import numpy as np
 
     u = np.asarray(latents, dtype=np.float64).reshape(-1, encoder.latent_dim)
     z, t = u[:, :encoder.z_dim], u[:, encoder.z_dim:]
-    low, high = (np.asarray(b, np.float64) for b in (box or (encoder.t_low, encoder.t_high)))
-    out = np.linalg.norm(np.maximum(low - t, 0) + np.maximum(t - high, 0), axis=1)
+    out = np.linalg.norm(_outside(t, boxes or [(encoder.t_low, encoder.t_high)])[0], axis=1)
     return [{"z_norm": round(float(a), 6), "t_outside": round(float(b), 6)} for a, b in zip(np.linalg.norm(z, axis=1), out)]
 
 
@@ -379,14 +392,14 @@ def confidence(plan: Any, encoder: Any, latents: dict, camera: dict, skills: Any
     feasibility below ``check.min_feasibility`` or the final cost above ``check.max_cost``: exit code 3) or
     ``out_of_distribution`` (a latent with ``|z|`` above ``check.max_z``: a warning).
     """
-    from pasta.planning.batch import centroid_box, planning_box
+    from pasta.planning.batch import centroid_box, training_boxes
 
-    box = planning_box(encoder, skills)
+    boxes = training_boxes(encoder, skills)
     by_name = {sk.name: sk for sk in skills}
-    conf: dict[str, Any] = {name: latent_distances(latents[name], encoder, box) for name in ("obs", "goal")}
+    conf: dict[str, Any] = {name: latent_distances(latents[name], encoder, boxes) for name in ("obs", "goal")}
     steps = []
     for step in plan.steps:
-        own = centroid_box(encoder, by_name[step.skill]) if step.skill in by_name else None
+        own = [centroid_box(encoder, by_name[step.skill])] if step.skill in by_name else None
         d = latent_distances(step.subgoal, encoder, own)
         steps.append({"skill": step.skill, "feasibility": step.feasibility,
                       "z_norm": max(x["z_norm"] for x in d), "t_outside": max(x["t_outside"] for x in d)})

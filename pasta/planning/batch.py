@@ -143,14 +143,15 @@ def centroid_box(encoder: Encoder, skill: Skill) -> tuple[tuple[float, ...], tup
     return tuple(float(v) for v in own[0]), tuple(float(v) for v in own[1])
 
 
-def planning_box(encoder: Encoder, skills: Sequence[Skill]) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """``(low, high)``: the union of the encoder's centroid box and every skill's (:func:`centroid_box`):
-    where the models have seen pieces, hence where an observed or goal piece may lie."""
-    low, high = tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
+def training_boxes(encoder: Encoder, skills: Sequence[Skill]) -> list[tuple[tuple[float, ...], tuple[float, ...]]]:
+    """The encoder's centroid box and each skill's own (:func:`centroid_box`), without repeats: where the
+    models have seen pieces, hence where an observed or goal piece may lie (inside any one of them)."""
+    boxes = [(tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high))]
     for skill in skills:
-        lo, hi = centroid_box(encoder, skill)
-        low, high = tuple(map(min, low, lo)), tuple(map(max, high, hi))
-    return low, high
+        box = centroid_box(encoder, skill)
+        if box not in boxes:
+            boxes.append(box)
+    return boxes
 
 
 def clamp_to_skill(latents: torch.Tensor, encoder: Encoder, skill: Skill) -> torch.Tensor:

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from pasta.planning import build_plan, sample_candidates
-from pasta.planning.batch import centroid_box, clamp_to_skill, planning_box
+from pasta.planning.batch import centroid_box, clamp_to_skill, training_boxes
 from pasta.plugins import get_plugins
 from pasta.plugins.analytic import analytic_problem
 from pasta.plugins.checks import configured
@@ -28,7 +28,7 @@ def test_a_skill_with_a_box_uses_it_the_others_the_encoders():
     p = with_box(analytic_problem())
     assert centroid_box(p.encoder, p.skill_map["move"]) == RAISED
     assert centroid_box(p.encoder, p.skill_map["split"]) == (tuple(p.encoder.t_low), tuple(p.encoder.t_high))
-    assert planning_box(p.encoder, p.skills) == ((0.1, 0.0, 0.1), (0.9, 0.5, 0.9))  # where pieces may lie
+    assert training_boxes(p.encoder, p.skills) == [((0.1, 0.0, 0.1), (0.9, 0.2, 0.9)), RAISED]  # where pieces may lie
     far = torch.tensor([[1.0, 0.0, 0.7, 0.9, 0.5]])  # y = 0.9: above both boxes
     low = torch.tensor([[1.0, 0.0, 0.7, 0.1, 0.5]])  # y = 0.1: below the raised box
     assert float(clamp_to_skill(far, p.encoder, p.skill_map["move"])[0, 3]) == pytest.approx(0.5)
@@ -77,3 +77,22 @@ def test_plans_without_boxes_are_unchanged():
     p = analytic_problem()
     p.skill_map["flatten"].feasibility_model = SimpleNamespace(output_box=None)
     assert planner.plan(p).to_json(timings=False) == planner.plan(analytic_problem()).to_json(timings=False)
+
+
+def test_pieces_may_lie_in_any_one_box_not_in_their_hull():
+    from pasta.commands.plan import check_training_box, latent_distances
+    from pasta.core.errors import InputError
+
+    p = with_box(analytic_problem())
+    boxes = training_boxes(p.encoder, p.skills)
+    raised = torch.tensor([[1.0, 0.0, 0.4, 0.4, 0.5]])  # inside the raised box only
+    check_training_box(raised, p.encoder, "goal", 0.0, boxes=boxes)
+    assert latent_distances(raised, p.encoder, boxes)[0]["t_outside"] == 0.0
+    # high up but far from the raised box in x: inside the boxes' hull, outside each of them
+    corner = torch.tensor([[1.0, 0.0, 0.85, 0.4, 0.5]])
+    # (0.2 above the encoder's box, 0.35 beside the raised one: the nearest is the encoder's)
+    with pytest.raises(InputError, match=r"0.200 out in y; box x 0.100..0.900.*nearest of 2"):
+        check_training_box(corner, p.encoder, "goal", 0.0, boxes=boxes)
+    assert latent_distances(corner, p.encoder, boxes)[0]["t_outside"] == pytest.approx(0.2, abs=1e-6)
+    with pytest.raises(InputError, match="out in y"):  # the encoder's box alone, as without skill boxes
+        check_training_box(raised, p.encoder, "goal", 0.0)
