@@ -132,15 +132,21 @@ def signature_of(sequence: Sequence[str], skills: Mapping[str, Skill]) -> tuple[
 
 
 def centroid_box(encoder: Encoder, skill: Skill) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """``(low, high)`` box of the centroids of ``skill``'s sub-goals: the skill's own box, where the entities
-    it produced in its feasibility network's training data lay (:attr:`pasta.core.Skill.output_box`), when
-    recorded, else the encoder's box of training centroids. Not their union: outside its own box the
-    network extrapolates, and it did so badly where it mattered (the lift rated a piece "set down" at
-    floor height, under the board, above the real lift: f 0.935 against 0.827)."""
+    """``(low, high)`` box of the centroids of ``skill``'s sub-goals. Without a box of the skill's own
+    (:attr:`pasta.core.Skill.output_box`: where the entities it produced in its feasibility network's
+    training data lay) it is the encoder's box of training centroids. With one, the height (y, up) is the
+    skill's own: a piece rests on the surface the skill leaves it on (the lift's on the raised board, at
+    y 0.086-0.114, above all of the encoder's floor pieces, up to 0.066; and outside its own heights the
+    lift's network extrapolates badly: it rated a piece "set down" under the board above a real lift,
+    f 0.935 against 0.827). On the table plane (x, z) it is the union of both: demonstrations place
+    pieces in a region (the roll's lie in the spreading area, x 0.20-0.41) while tasks put them anywhere
+    the encoder has seen (a crs goal rolls its piece at x 0.52)."""
+    low, high = tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
     own = skill.output_box
     if own is None:
-        return tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
-    return tuple(float(v) for v in own[0]), tuple(float(v) for v in own[1])
+        return low, high
+    return ((min(low[0], own[0][0]), float(own[0][1]), min(low[2], own[0][2])),
+            (max(high[0], own[1][0]), float(own[1][1]), max(high[2], own[1][2])))
 
 
 def training_boxes(encoder: Encoder, skills: Sequence[Skill]) -> list[tuple[tuple[float, ...], tuple[float, ...]]]:

@@ -1,5 +1,6 @@
-"""A skill's own centroid box (``Skill.output_box``): its sub-goals are drawn and kept in that box; skills
-without one use the encoder's and plan exactly as before."""
+"""A skill's own centroid box (``Skill.output_box``): its sub-goals are drawn and kept at its own heights, on
+the table plane in the union with the encoder's box; skills without one use the encoder's and plan exactly
+as before."""
 
 from __future__ import annotations
 
@@ -26,9 +27,9 @@ def with_box(problem, name: str = "move", box=RAISED):
 
 def test_a_skill_with_a_box_uses_it_the_others_the_encoders():
     p = with_box(analytic_problem())
-    assert centroid_box(p.encoder, p.skill_map["move"]) == RAISED
+    assert centroid_box(p.encoder, p.skill_map["move"]) == ((0.1, 0.3, 0.1), (0.9, 0.5, 0.9))  # own y, union x/z
     assert centroid_box(p.encoder, p.skill_map["split"]) == (tuple(p.encoder.t_low), tuple(p.encoder.t_high))
-    assert training_boxes(p.encoder, p.skills) == [((0.1, 0.0, 0.1), (0.9, 0.2, 0.9)), RAISED]  # where pieces may lie
+    assert training_boxes(p.encoder, p.skills) == [((0.1, 0.0, 0.1), (0.9, 0.2, 0.9)), ((0.1, 0.3, 0.1), (0.9, 0.5, 0.9))]
     far = torch.tensor([[1.0, 0.0, 0.7, 0.9, 0.5]])  # y = 0.9: above both boxes
     low = torch.tensor([[1.0, 0.0, 0.7, 0.1, 0.5]])  # y = 0.1: below the raised box
     assert float(clamp_to_skill(far, p.encoder, p.skill_map["move"])[0, 3]) == pytest.approx(0.5)
@@ -51,9 +52,11 @@ def test_draws_fill_the_skills_box_and_leave_the_others_unchanged():
             slots = [name for name in seq for _ in range(boxed.skill_map[name].n_out)]
             for j, name in enumerate(slots):
                 ya, yb = ga.latents[rows, j, 3], gb.latents[rows, j, 3]
-                if name == "move":  # spread over its own box, above the encoder's 0.2
+                if name == "move":  # spread over its own heights, above the encoder's 0.2
                     assert 0.3 - 1e-6 <= float(yb.min()) and float(yb.max()) <= 0.5 + 1e-6
                     assert float(yb.std()) > 0.04
+                    # the table plane: the union with the encoder's box is the encoder's here: same draws
+                    assert torch.equal(ga.latents[rows, j, 2], gb.latents[rows, j, 2])
                 else:  # the very same draws as without any box
                     assert torch.equal(ya, yb)
             assert all(torch.equal(x, y) for x, y in zip(ga.inputs, gb.inputs))
@@ -88,11 +91,11 @@ def test_pieces_may_lie_in_any_one_box_not_in_their_hull():
     raised = torch.tensor([[1.0, 0.0, 0.4, 0.4, 0.5]])  # inside the raised box only
     check_training_box(raised, p.encoder, "goal", 0.0, boxes=boxes)
     assert latent_distances(raised, p.encoder, boxes)[0]["t_outside"] == 0.0
-    # high up but far from the raised box in x: inside the boxes' hull, outside each of them
-    corner = torch.tensor([[1.0, 0.0, 0.85, 0.4, 0.5]])
-    # (0.2 above the encoder's box, 0.35 beside the raised one: the nearest is the encoder's)
-    with pytest.raises(InputError, match=r"0.200 out in y; box x 0.100..0.900.*nearest of 2"):
-        check_training_box(corner, p.encoder, "goal", 0.0, boxes=boxes)
-    assert latent_distances(corner, p.encoder, boxes)[0]["t_outside"] == pytest.approx(0.2, abs=1e-6)
+    # between the heights of both boxes: inside their hull, outside each (0.07 above the encoder's, 0.03
+    # under the raised one, the nearest)
+    between = torch.tensor([[1.0, 0.0, 0.5, 0.27, 0.5]])
+    with pytest.raises(InputError, match=r"0.030 out in y; box x 0.100..0.900, y 0.300..0.500.*nearest of 2"):
+        check_training_box(between, p.encoder, "goal", 0.0, boxes=boxes)
+    assert latent_distances(between, p.encoder, boxes)[0]["t_outside"] == pytest.approx(0.03, abs=1e-6)
     with pytest.raises(InputError, match="out in y"):  # the encoder's box alone, as without skill boxes
         check_training_box(raised, p.encoder, "goal", 0.0)
