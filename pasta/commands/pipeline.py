@@ -29,7 +29,7 @@ EPILOG = """arguments (key=value):
   reset_skills=auto      policies that get a learned reset (start) pose (stage reset); auto: the
                          skills whose plugin asks for it (built-ins: cut); empty: none
   select_skills=auto     policies whose stopping rule is chosen on validation configs (stage select);
-                         auto: the skills whose plugin asks for it (built-ins: cut, roll); empty: none
+                         auto: the skills whose plugin asks for it (built-ins: cut, roll, lift); empty: none
   only=UNIT[,UNIT]       run these units only: a unit (feasibility/cut) or a whole stage (cost)
   force=true             rerun the selected units even when done (demonstrations are never deleted)
   progress=false         hide the inner progress bars
@@ -56,7 +56,8 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
                          configs; the rule goes into OUT/policy/<skill>/model.json, the per-config
                          results into select.json); cut thresholds=0.3,...,0.7
                          max_steps=0,40,45,50,55,60,65,70,80,100; roll thresholds=0.3,...,0.8
-                         min_steps=1,20 max_steps=0,60
+                         min_steps=1,20 max_steps=0,60; lift thresholds=0.05,0.1,0.2,0.3,0.5
+                         max_steps=0,100,110,120,130,140
   vae and cost train on every skill found in data; feasibility and cost use OUT/vae; reset and select
   run after every policy unit (a cut rule is chosen with the cut's reset pose in place).
 
@@ -77,7 +78,7 @@ examples:
   pasta pipeline stages=vae,feasibility,cost             # retrain from existing demonstrations
   pasta pipeline only=feasibility/cut feasibility.epochs=40   # one unit, with more epochs
   pasta pipeline stages=policy skills=cut,roll policy.epochs=20
-  pasta pipeline stages=select select.n=10              # re-choose the stopping rules (cut and roll)
+  pasta pipeline stages=select select.n=10              # re-choose the stopping rules (cut, roll, lift)
   pasta pipeline force=true only=cost                    # retrain the cost model even if done
   pasta pipeline backend=ray ray.address=auto workers=0  # demonstrations on the Ray cluster
   make train                                             # the same as `pasta pipeline`"""
