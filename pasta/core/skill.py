@@ -182,10 +182,11 @@ class Skill:
     def output_box(self) -> tuple[tuple[float, float, float], tuple[float, float, float]] | None:
         """``(low, high)``: the centroid box of the entities this skill produced in the training data of
         its attached feasibility network (its ``output_box`` attribute; ``None``: none recorded). The
-        planner draws and clamps the sub-goal centroids of this skill's steps in this box (else in the
-        encoder's; :func:`pasta.planning.batch.centroid_box`): a skill that sets dough down on a raised
-        board produces centroids that the encoder's training pieces, all on the floor, never had, and
-        its network is only trusted where it was trained."""
+        planner draws and clamps the sub-goal centroids of this skill's steps at this box's heights and,
+        on the table plane, in its union with the encoder's box (else in the encoder's;
+        :func:`pasta.planning.batch.centroid_box`): a skill that sets dough down on a raised board
+        produces centroids that the encoder's training pieces, all on the floor, never had, and its
+        network is not to be trusted at heights it never saw."""
         box = getattr(self.feasibility_model, "output_box", None)
         return None if box is None else (tuple(box[0]), tuple(box[1]))
 
