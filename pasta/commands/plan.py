@@ -194,12 +194,13 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         entities[name] = [resample(pts[lab == k], num_points, rng) for k in range(int(lab.max()) + 1)]
         labels[name] = point_labels(loaded[name], kept[name], kept_points[name], pts, lab)
     latents = {}
+    boxes = training_boxes(encoder, skills)
     with torch.no_grad():
         for name, ents in entities.items():
             u = encoder.encode(torch.from_numpy(np.stack(ents))).float()
             latents[name] = check_latents(u, f"the {len(ents)} encoded {name} entities (encoder {cfg.encoder.name!r})",
                                           dim=encoder.latent_dim)
-            check_training_box(latents[name], encoder, name, camera["box_margin"], boxes=training_boxes(encoder, skills))
+            check_training_box(latents[name], encoder, name, camera["box_margin"], boxes=boxes)
     # observed pieces that already are a goal piece (Chamfer < 5e-4): never attended, matched to it
     from pasta.core.matching import unchanged_pairs
 

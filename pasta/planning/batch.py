@@ -131,6 +131,11 @@ def signature_of(sequence: Sequence[str], skills: Mapping[str, Skill]) -> tuple[
     return tuple((skills[n].n_in, skills[n].n_out) for n in sequence)
 
 
+def encoder_box(encoder: Encoder) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """``(low, high)``: the encoder's box of training centroids, as floats."""
+    return tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
+
+
 def centroid_box(encoder: Encoder, skill: Skill) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """``(low, high)`` box of the centroids of ``skill``'s sub-goals. Without a box of the skill's own
     (:attr:`pasta.core.Skill.output_box`: where the entities it produced in its feasibility network's
@@ -141,7 +146,7 @@ def centroid_box(encoder: Encoder, skill: Skill) -> tuple[tuple[float, ...], tup
     f 0.935 against 0.827). On the table plane (x, z) it is the union of both: demonstrations place
     pieces in a region (the roll's lie in the spreading area, x 0.20-0.41) while tasks put them anywhere
     the encoder has seen (a crs goal rolls its piece at x 0.52)."""
-    low, high = tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high)
+    low, high = encoder_box(encoder)
     own = skill.output_box
     if own is None:
         return low, high
@@ -152,7 +157,7 @@ def centroid_box(encoder: Encoder, skill: Skill) -> tuple[tuple[float, ...], tup
 def training_boxes(encoder: Encoder, skills: Sequence[Skill]) -> list[tuple[tuple[float, ...], tuple[float, ...]]]:
     """The encoder's centroid box and each skill's own (:func:`centroid_box`), without repeats: where the
     models have seen pieces, hence where an observed or goal piece may lie (inside any one of them)."""
-    boxes = [(tuple(float(v) for v in encoder.t_low), tuple(float(v) for v in encoder.t_high))]
+    boxes = [encoder_box(encoder)]
     for skill in skills:
         box = centroid_box(encoder, skill)
         if box not in boxes:

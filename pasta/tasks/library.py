@@ -154,12 +154,11 @@ class CRSTask(Task):
     skeleton = ("cut", "push", "roll")
     summary = "cut, push the cut piece to the spreading area, roll it flat"
     z_spread = 0.2
-    distractors = 0  # extra pieces, when the config has no ``distractors`` setting
 
     def build(self, gen: Generation) -> None:
         floor = floor_of(gen)
         boxes = [crs_box(gen.rng, floor, z_spread=self.z_spread)]
-        count = int(getattr(self.config, "distractors", self.distractors))
+        count = int(getattr(self.config, "distractors", 0))  # extra pieces: crs_distractors' setting, none in crs
         boxes += distractor_boxes(gen.rng, floor, count)
         gen.start(boxes)
         gen.run("cut", 0, cut_params(gen, 0, (0.1, 0.12)))

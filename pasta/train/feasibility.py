@@ -42,10 +42,11 @@ class FeasibilityTrainConfig:
             that cannot carry dough far (roll, cut): without them the network accepts an output a few
             centimetres from where the skill leaves it, and plans inherit that slack. 0 (default) for push.
         shift_min, shift_max: the displacement range of those negatives.
-        shift_axes: ``xz`` (default: a direction in the table plane) or ``xyz`` (any direction in space):
-            for skills whose output height is the point, e.g. the lift, whose pieces end on the raised
-            board; with table-plane shifts only its network rated a piece "set down" at floor height, under
-            the board, as feasible as one on it (LiftSpread seed 1000: f 0.998).
+        shift_axes: ``xz`` (default: a direction in the table plane) or ``xyz`` (any direction in space),
+            for skills whose output height matters. Tried for the lift, whose network rates a piece "set
+            down" at floor height, under the board, as feasible as one on it: with ``xyz`` it still did
+            (f 0.935 against 0.827 for the real lift, LiftSpread seed 1000), so the shipped lift network
+            does not use it; the planner's per-skill heights fix that (docs/learning.md).
         z_noise, t_noise: std of the Gaussian noise on ``z`` and ``t`` of positives (training only).
         unchanged_threshold: Chamfer below which an entity counts as unchanged.
         match_points: points per entity used for that Chamfer.
