@@ -41,6 +41,12 @@ class LatentPlannerConfig(PluginConfig):
     # cost_weight * clearance_weight = 5 in log score, like a step at feasibility e^-5.
     clearance_weight: float = 0.05
     keep_per_sequence: int = 4  # also: candidates per sequence reported in plan.info (paper top-4)
+    # Refinement: after the search, the best `refine_sequences` sequences are searched once more with
+    # fresh `num_samples` candidates each, and every sequence keeps the better of its two results
+    # (0 disables; skipped when the search had no more sequences than this). One sequence's best of 128
+    # samples varies by a few hundredths of plan score from draw to draw, as much as the gap between the
+    # right and the wrong skeleton of crs with distractors (docs/planning.md, "Refining the best sequences").
+    refine_sequences: int = 2
 
     def __post_init__(self) -> None:
         """Range checks, run whenever the section is resolved (every command), naming ``planner.<key>``."""
@@ -49,6 +55,7 @@ class LatentPlannerConfig(PluginConfig):
         check_int(self.num_samples, "planner.num_samples", low=1)
         check_int(self.iterations, "planner.iterations", low=0)
         check_int(self.keep_per_sequence, "planner.keep_per_sequence", low=1)
+        check_int(self.refine_sequences, "planner.refine_sequences", low=0)
         # a NaN or zero step size gives NaN latents or no search at all (issue 21: lr=nan planned NaN sub-goals)
         check_number(self.lr, "planner.lr", low=0.0, low_open=True)
         check_number(self.adam_eps, "planner.adam_eps", low=0.0, low_open=True)

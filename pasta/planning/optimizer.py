@@ -75,6 +75,9 @@ def search(
 ) -> SearchResult:
     """Optimise ``config.num_samples`` candidates per sequence and return the best.
 
+    With ``config.refine_sequences = R > 0`` and more than ``R`` sequences, the ``R`` best sequences are
+    then optimised once more from fresh candidates and each keeps its better result (:func:`_refine`).
+
     Args:
         problem: gives the skills, encoder, cost model and goal ``(G, D)``.
         sequences: skill-name sequences, any lengths; each must be able to consume at every step.
@@ -108,21 +111,57 @@ def search(
     if fixed:
         runnable = [s for s in sequences if free_feasible(s, problem.skill_map, start.shape[0], len(fixed))]
         sequences, fixed = (runnable, fixed) if runnable else (list(sequences), ())
-    batch = sample_candidates(start, problem.goal, sequences, problem.skill_map, problem.encoder, config.num_samples,
-                              generator, fixed=fixed)
-    samples = batch.size
-    t1 = time.perf_counter()
     clearance = None
     if config.clearance_weight > 0:
         clearance = Clearance.from_problem(problem.encoder, start, problem.goal, skills=problem.skills)
-    opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance)
-    scores = opt.run()
-    t2 = time.perf_counter()
-    result = _select(opt.batch, scores, config.keep_per_sequence)
-    result.samples, result.evaluations = samples, opt.evaluations
-    result.timings = {"sample": t1 - t0, "optimise": t2 - t1}
+    timings = {"sample": 0.0, "optimise": 0.0}
+
+    def optimise(seqs: Sequence[Sequence[str]]) -> SearchResult:
+        t_a = time.perf_counter()
+        batch = sample_candidates(start, problem.goal, seqs, problem.skill_map, problem.encoder, config.num_samples,
+                                  generator, fixed=fixed)
+        drawn = batch.size  # before halving shrinks the batch
+        t_b = time.perf_counter()
+        opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance)
+        scores = opt.run()
+        timings["sample"] += t_b - t_a
+        timings["optimise"] += time.perf_counter() - t_b
+        res = _select(opt.batch, scores, config.keep_per_sequence)
+        res.samples, res.evaluations = drawn, opt.evaluations
+        return res
+
+    timings["sample"] += time.perf_counter() - t0  # the fixed-entity filter and the clearance set-up
+    result = optimise(sequences)
+    refine = int(getattr(config, "refine_sequences", 0) or 0)
+    if 0 < refine < len(sequences):
+        result = _refine(result, sequences, refine, optimise)
+    result.timings = timings
     result.fixed = fixed
     return result
+
+
+def _refine(result: SearchResult, sequences: Sequence[Sequence[str]], count: int, optimise) -> SearchResult:
+    """Search the ``count`` best sequences of ``result`` again with fresh candidates; keep each one's better result.
+
+    The winner is then the best over both rounds. ``per_sequence`` rows of refined sequences gain
+    ``"refined": True``, their ``samples`` (left at the end) add up and their ``top_scores`` merge.
+    """
+    ranked = sorted((i for i, b in enumerate(result.best) if b is not None), key=lambda i: -result.best[i][3])[:count]
+    if not ranked:
+        return result
+    again = optimise([sequences[i] for i in ranked])
+    best, per_sequence = list(result.best), [dict(r) for r in result.per_sequence]
+    for j, i in enumerate(ranked):
+        row, new = per_sequence[i], again.per_sequence[j]
+        row["top_scores"] = sorted(row["top_scores"] + new["top_scores"], reverse=True)[: len(row["top_scores"]) or None]
+        row["samples"] += new["samples"]
+        row["refined"] = True
+        if again.best[j] is not None and again.best[j][3] > best[i][3]:  # ties keep the first round's
+            best[i], row["score"] = again.best[j], again.best[j][3]
+    win = max(range(len(best)), key=lambda i: (best[i][3] if best[i] is not None else -math.inf, -i))
+    skeleton, attention, subgoals, score = best[win]
+    return SearchResult(skeleton, attention, subgoals, score, per_sequence, result.samples + again.samples,
+                        result.evaluations + again.evaluations, best=best)
 
 
 class _Optimiser:

@@ -20,6 +20,10 @@ embedded by a small MLP (``aux_widths``) and concatenated to the global point fe
 - ``pose_feature``: the tool pose ``(7,)`` (position, quaternion ``w, x, y, z``), the position shifted
   like the clouds and times ``encoder.pos_scale``. The same information as the tool cloud, but exact: the
   max-pooled cloud feature locates the tool only coarsely.
+- ``goal_feature``: the offset of the goal centroid from the dough centroid ``(3,)``, times
+  ``encoder.pos_scale``, computed from the two clouds (no extra input). Where the piece must go, exact:
+  the lift policy trained without it carried every piece along the demonstrations' mean direction (-x)
+  whatever the goal, and never stopped (docs/policies.md, "lift and gather").
 
 Output: ``action (B, A)`` in ``[-1, 1]`` (tanh) and ``done (B,)`` logits.
 """
@@ -50,7 +54,8 @@ class PolicyConfig:
         step_feature: feed the execution step ``t / step_scale`` to the heads.
         step_scale: divisor of the step index.
         pose_feature: feed the tool pose ``(7,)`` to the heads.
-        aux_widths: widths of the MLP that embeds the step / pose inputs.
+        goal_feature: feed the goal centroid's offset from the dough centroid ``(3,)`` to the heads.
+        aux_widths: widths of the MLP that embeds the step / pose / goal inputs.
     """
 
     action_dim: int = 2
@@ -63,12 +68,13 @@ class PolicyConfig:
     step_feature: bool = False
     step_scale: float = 50.0
     pose_feature: bool = False
+    goal_feature: bool = False
     aux_widths: tuple[int, ...] = (64, 64)
 
     @property
     def aux_dim(self) -> int:
         """Size of the raw low-dimensional input (0: none)."""
-        return (1 if self.step_feature else 0) + (7 if self.pose_feature else 0)
+        return (1 if self.step_feature else 0) + (7 if self.pose_feature else 0) + (3 if self.goal_feature else 0)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -92,7 +98,7 @@ class PolicyConfig:
             **({"levels": levels} if levels else {}),
         )
         head = tuple(int(w) for w in d.pop("head_widths", (256, 128)))
-        for key in ("step_feature", "pose_feature"):
+        for key in ("step_feature", "pose_feature", "goal_feature"):
             if key in d:
                 d[key] = bool(d[key])
         if "step_scale" in d:
@@ -149,11 +155,12 @@ class PolicyNet(nn.Module):
         onehot = nn.functional.one_hot(src, 3).to(xyz.dtype).unsqueeze(0).expand(xyz.shape[0], -1, -1)
         h = self.encoder(xyz, onehot)
         if self.cfg.aux_dim:
-            h = torch.cat([h, self.aux(self._aux_input(h, step, pose, shift))], -1)
+            offset = goal.mean(1) - dough.mean(1) if self.cfg.goal_feature else None
+            h = torch.cat([h, self.aux(self._aux_input(h, step, pose, shift, offset))], -1)
         return torch.tanh(self.action_head(h)), self.done_head(h).squeeze(-1)
 
     def _aux_input(self, h: torch.Tensor, step: torch.Tensor | None, pose: torch.Tensor | None,
-                   shift: torch.Tensor | None) -> torch.Tensor:
+                   shift: torch.Tensor | None, offset: torch.Tensor | None = None) -> torch.Tensor:
         parts = []
         if self.cfg.step_feature:
             if step is None:
@@ -165,4 +172,6 @@ class PolicyNet(nn.Module):
             pose = pose.to(h.dtype).reshape(-1, 7).expand(h.shape[0], 7)
             pos = pose[:, :3] - (shift[:, 0] if shift is not None else 0.0)
             parts += [pos * self.cfg.encoder.pos_scale, pose[:, 3:]]
+        if offset is not None:  # (B, 3): goal centroid - dough centroid, unchanged by the centring shift
+            parts.append(offset.to(h.dtype) * self.cfg.encoder.pos_scale)
         return torch.cat(parts, -1)

@@ -46,6 +46,8 @@ class PolicyTrainConfig:
         step_feature: the network also sees the step index within the execution
             (:attr:`PolicyConfig.step_feature`; for skills whose phase one frame does not show).
         pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`).
+        goal_feature: the network also sees the goal centroid's offset from the dough centroid
+            (:attr:`PolicyConfig.goal_feature`).
         start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
             first step with a vertical action, :func:`pasta.policy.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
@@ -65,6 +67,7 @@ class PolicyTrainConfig:
     max_demos: int = 0
     step_feature: bool = False
     pose_feature: bool = False
+    goal_feature: bool = False
     start_at_reset: bool = False
 
     def __post_init__(self) -> None:
@@ -107,6 +110,7 @@ class PolicyTask:
         net_cfg.dough_points, net_cfg.tool_points, net_cfg.goal_points = cfg.dough_points, cfg.tool_points, cfg.goal_points
         net_cfg.step_feature = net_cfg.step_feature or cfg.step_feature
         net_cfg.pose_feature = net_cfg.pose_feature or cfg.pose_feature
+        net_cfg.goal_feature = net_cfg.goal_feature or cfg.goal_feature
         torch.manual_seed(seed)
         self.model = PolicyNet(net_cfg)
         rng = np.random.default_rng(seed + 7919)

@@ -47,6 +47,10 @@ class FeasibilityTrainConfig:
             down" at floor height, under the board, as feasible as one on it: with ``xyz`` it still did
             (f 0.935 against 0.827 for the real lift, LiftSpread seed 1000), so the shipped lift network
             does not use it; the planner's per-skill heights fix that (docs/learning.md).
+        shift_entities: which produced entities a near miss moves: ``all`` (default: all by one offset)
+            or ``one`` (one of them, chosen uniformly; the rest stay). For skills with several outputs
+            whose layout is fixed by the skill: the cut's two halves lie side by side, and a cut network
+            trained with ``all`` near misses, or none, rated halves 37 cm apart f 0.997 (docs/learning.md).
         z_noise, t_noise: std of the Gaussian noise on ``z`` and ``t`` of positives (training only).
         unchanged_threshold: Chamfer below which an entity counts as unchanged.
         match_points: points per entity used for that Chamfer.
@@ -65,6 +69,7 @@ class FeasibilityTrainConfig:
     shift_min: float = 0.03
     shift_max: float = 0.1
     shift_axes: str = "xz"
+    shift_entities: str = "all"
     z_noise: float = 0.02
     t_noise: float = 0.01
     unchanged_threshold: float = 5e-4
@@ -78,13 +83,15 @@ class FeasibilityTrainConfig:
 
 
 def train_dict(cfg: Any) -> dict[str, Any]:
-    """``asdict(cfg)`` without ``flat`` when it is false and ``shift_axes`` when it is ``xz``, so checkpoints
-    of earlier runs keep their old config (and resume)."""
+    """``asdict(cfg)`` without ``flat`` when it is false, ``shift_axes`` when it is ``xz`` and ``shift_entities``
+    when it is ``all``, so checkpoints of earlier runs keep their old config (and resume)."""
     d = asdict(cfg)
     if not d.get("flat", True):
         d.pop("flat")
     if d.get("shift_axes") == "xz":
         d.pop("shift_axes")
+    if d.get("shift_entities") == "all":
+        d.pop("shift_entities")
     return d
 
 
@@ -127,12 +134,15 @@ def hard_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, prior: 
 
 
 def shifted_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, z_dim: int, low: float, high: float,
-                      generator: torch.Generator, axes: str = "xz") -> tuple[torch.Tensor, torch.Tensor]:
-    """``copies`` versions of each tuple whose produced entities all move by one random offset of length in
+                      generator: torch.Generator, axes: str = "xz", entities: str = "all") -> tuple[torch.Tensor, torch.Tensor]:
+    """``copies`` versions of each tuple whose produced entities move by one random offset of length in
     ``[low, high]`` (centroid ``t = u[z_dim:z_dim+3]``, y is up): in the table plane (``axes="xz"``, the
-    draws of earlier versions) or in any direction (``"xyz"``, uniform on the sphere)."""
+    draws of earlier versions) or in any direction (``"xyz"``, uniform on the sphere); all of them
+    (``entities="all"``) or one uniformly chosen (``"one"``, the same draws otherwise)."""
     if axes not in ("xz", "xyz"):
         raise ConfigError(f"shift_axes must be 'xz' or 'xyz', got {axes!r}")
+    if entities not in ("all", "one"):
+        raise ConfigError(f"shift_entities must be 'all' or 'one', got {entities!r}")
     u_in, u_out = u_in.repeat(copies, 1, 1), u_out.repeat(copies, 1, 1).clone()
     b = u_out.shape[0]
     if axes == "xz":
@@ -142,7 +152,11 @@ def shifted_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, z_di
         direction = torch.randn(b, 3, generator=generator)
         direction = direction / direction.norm(dim=1, keepdim=True).clamp(min=1e-12)
     length = low + torch.rand(b, generator=generator) * (high - low)
-    u_out[:, :, z_dim:z_dim + 3] += (length[:, None] * direction)[:, None, :]
+    offset = (length[:, None] * direction)[:, None, :].expand(-1, u_out.shape[1], -1)
+    if entities == "one":  # (B, M, 1): only the chosen entity of each tuple moves
+        which = torch.randint(u_out.shape[1], (b,), generator=generator)
+        offset = offset * (torch.arange(u_out.shape[1])[None, :] == which[:, None]).to(offset.dtype)[..., None]
+    u_out[:, :, z_dim:z_dim + 3] += offset
     return u_in, u_out
 
 
@@ -165,7 +179,7 @@ class FeasibilityTask:
         self.val_hard = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive, self.prior, gen)
         # near misses, always measured (val_auc_shift), trained on only with shift_per_positive > 0
         self.val_shift = shifted_negatives(self.val_in, self.val_out, 2, self.z_dim, cfg.shift_min, cfg.shift_max, gen,
-                                           cfg.shift_axes)
+                                           cfg.shift_axes, cfg.shift_entities)
         if cfg.shift_per_positive > 0:
             self.val_hard = _cat(self.val_hard, self.val_shift)
         m = len(self.val_in)
@@ -196,7 +210,8 @@ class FeasibilityTask:
         hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
         if self.cfg.shift_per_positive > 0:
             hard = _cat(hard, shifted_negatives(u_in, u_out, self.cfg.shift_per_positive, self.z_dim,
-                                                self.cfg.shift_min, self.cfg.shift_max, generator, self.cfg.shift_axes))
+                                                self.cfg.shift_min, self.cfg.shift_max, generator, self.cfg.shift_axes,
+                                                self.cfg.shift_entities))
         b, n, m = len(batch), u_in.shape[1], u_out.shape[1]
         rand = (self.prior(b * n, generator).view(b, n, -1), self.prior(b * m, generator).view(b, m, -1))
         return self._weighted((u_in, u_out), hard, rand)

@@ -28,6 +28,7 @@ from pasta.core import ConfigError
     ("planner.feasibility_floor=2", r"planner.feasibility_floor=2.0: must be a finite number in \[0, 1\]"),
     ("planner.feasibility_floor=-0.1", r"planner.feasibility_floor=-0.1: must be a finite number in \[0, 1\]"),
     ("planner.num_samples=0", r"planner.num_samples=0: must be an integer >= 1"),
+    ("planner.refine_sequences=-1", r"planner.refine_sequences=-1: must be an integer >= 0"),
     ("planner.cost_weight=nan", r"planner.cost_weight=nan: must be a finite number >= 0"),
     ("planner.objective=prod", r"planner.objective=prod: must be one of log, product; did you mean 'product'"),
     ("planner.matching=fast", r"planner.matching=fast: must be one of auto, frozen, recompute"),

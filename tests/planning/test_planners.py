@@ -93,3 +93,23 @@ def test_config_switch_builds_each_planner():
 def test_recomputed_matching_solves_too():
     plan = make("exhaustive", num_samples=128, iterations=100, matching="recompute").plan(analytic_problem())
     assert plan.skills == OPTIMAL_SKELETON and plan.score > 0.5
+
+
+@pytest.mark.parametrize("name", ["exhaustive", "sampling"])
+def test_refinement_searches_the_best_sequences_again_and_keeps_the_better(name):
+    problem = analytic_problem(seed=3)
+    plain = make(name, num_samples=32, iterations=20, refine_sequences=0).plan(problem)
+    refined = make(name, num_samples=32, iterations=20, refine_sequences=2).plan(problem)
+    rows0, rows = plain.info["per_sequence"], refined.info["per_sequence"]
+    # the first round draws the same candidates: the two refined rows are its two best sequences
+    top2 = sorted(range(len(rows0)), key=lambda i: -rows0[i]["score"])[:2]
+    assert [i for i, r in enumerate(rows) if r.get("refined")] == sorted(top2)
+    for r0, r in zip(rows0, rows):
+        assert r["score"] >= r0["score"]  # a refined sequence keeps the better of its two rounds
+        assert r["samples"] == r0["samples"] * (2 if r.get("refined") else 1)  # left at the end of each round
+    assert refined.info["samples"] == plain.info["samples"] + 2 * 32
+    assert refined.score >= plain.score - 1e-9
+    # with no more sequences than refine_sequences there is nothing to rank: the plain search
+    many = make(name, num_samples=32, iterations=20, refine_sequences=len(rows0)).plan(problem)
+    assert many.to_json(timings=False) == plain.to_json(timings=False)
+

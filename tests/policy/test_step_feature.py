@@ -159,3 +159,23 @@ def test_pose_feature_is_shifted_with_the_clouds_and_checked():
         policy.predict(dough.numpy(), tool.numpy(), goal.numpy(), np.zeros(1))
     got, _ = policy.predict(dough.numpy(), tool.numpy(), goal.numpy(), np.zeros(1), pose.numpy())
     np.testing.assert_allclose(got, a.numpy(), atol=1e-6)
+
+
+def test_goal_feature_is_the_centroid_offset_and_survives_a_scene_shift():
+    torch.manual_seed(0)
+    cfg = PolicyConfig(action_dim=3, step_feature=True, goal_feature=True, **TINY)
+    assert cfg.aux_dim == 4 and PolicyConfig.from_dict(cfg.to_dict()) == cfg
+    assert PolicyConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "goal_feature"}).goal_feature is False
+    net = PolicyNet(cfg).eval()
+    seen = []
+    net.aux.register_forward_hook(lambda mod, inp, out: seen.append(inp[0].clone()))
+    dough, tool, goal = torch.rand(2, 30, 3) * 0.1, torch.rand(2, 10, 3) * 0.1, torch.rand(2, 30, 3) * 0.1 + 0.2
+    move = torch.tensor([0.3, 0.0, -0.2])
+    with torch.no_grad():
+        net.action_head[-1].weight.normal_(0, 1.0)
+        a, _ = net(dough, tool, goal, torch.zeros(2))
+        a2, _ = net(dough + move, tool + move, goal + move, torch.zeros(2))
+    offset = (goal.mean(1) - dough.mean(1)) * cfg.encoder.pos_scale
+    torch.testing.assert_close(seen[0][:, 1:], offset)  # after the step column
+    torch.testing.assert_close(seen[1][:, 1:], offset, rtol=1e-5, atol=1e-5)
+    torch.testing.assert_close(a2, a, rtol=1e-4, atol=1e-5)

@@ -1,4 +1,4 @@
-"""Near-miss negatives of feasibility training: produced entities moved together by 3-10 cm."""
+"""Near-miss negatives of feasibility training: produced entities (all, or one) moved by 3-10 cm."""
 
 from __future__ import annotations
 
@@ -47,3 +47,22 @@ def test_table_plane_draws_are_the_earlier_ones():
     assert train_dict(FeasibilityTrainConfig(skill="lift", shift_axes="xyz"))["shift_axes"] == "xyz"
     with pytest.raises(ConfigError, match="shift_axes"):
         shifted_negatives(u_in, u_out, 1, Z, 0.03, 0.1, torch.Generator(), "y")
+
+
+def test_one_entity_moves_and_the_others_stay():
+    u_in, u_out = tuples()
+    n_in, n_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2), "xz", "one")
+    assert torch.equal(n_in, u_in.repeat(3, 1, 1))
+    d = (n_out - u_out.repeat(3, 1, 1))[..., Z:].norm(dim=-1)  # (B, 2) displacement per produced entity
+    moved = d > 1e-6
+    assert torch.equal(moved.sum(1), torch.ones(1200, dtype=torch.long))  # exactly one of the two
+    assert 0.4 < float(moved[:, 0].float().mean()) < 0.6  # either one, uniformly
+    assert float(d[moved].min()) >= 0.03 - 1e-6 and float(d[moved].max()) <= 0.1 + 1e-6
+    # the default moves all: the earlier negatives, and old checkpoint configs stay as they were
+    _, all_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2), "xz")
+    assert torch.equal(all_out, shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2),
+                                                  "xz", "all")[1])
+    assert "shift_entities" not in train_dict(FeasibilityTrainConfig(skill="cut"))
+    assert train_dict(FeasibilityTrainConfig(skill="cut", shift_entities="one"))["shift_entities"] == "one"
+    with pytest.raises(ConfigError, match="shift_entities"):
+        shifted_negatives(u_in, u_out, 1, Z, 0.03, 0.1, torch.Generator(), "xz", "some")

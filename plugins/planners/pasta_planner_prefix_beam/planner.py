@@ -91,7 +91,9 @@ class PrefixBeamPlanner(LatentPlanner):
                 f"no sequence of {'' if exact else '1 to '}{horizon} skills turns {len(problem.obs)} observed entities "
                 f"into {k_goal} goal entities; skill cardinalities (N_k -> M_k): "
                 + ", ".join(f"{s.name} {s.n_in}->{s.n_out}" for s in specs))
-        pcfg = dataclasses.replace(cfg, num_samples=int(cfg.prefix_samples), iterations=int(cfg.prefix_iterations))
+        # prefix searches only rank children for the beam; the final search over the kept sequences refines
+        pcfg = dataclasses.replace(cfg, num_samples=int(cfg.prefix_samples), iterations=int(cfg.prefix_iterations),
+                                   refine_sequences=0)
         beam = [_Prefix((), [problem.obs], [0.0], 0.0)]
         complete: dict[tuple[str, ...], float] = {}
         stages: list[dict] = []
