@@ -45,19 +45,19 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
   demos/<skill>          pasta demos skill=<skill> num=<num_demos> workers=<workers> out=<data>
   demos/push-wide        pasta demos skill=push num=<num_demos + 150> scene=wide ...
   vae                    epochs=11 stride=5 threads=1                       -> OUT/vae
-  feasibility/<skill>    threads=1; cut stride=3 (epochs 30);
-                         push and roll stride=4 epochs=20                   -> OUT/feasibility/<skill>
+  feasibility/<skill>    threads=1; cut stride=3 (epochs 30) shift_per_positive=5 shift_entities=one
+                         shift_max=0.25; push and roll stride=4 epochs=20   -> OUT/feasibility/<skill>
   cost                   stride=5 threads=1 (epochs 60)                     -> OUT/cost
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
-                         cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true
+                         cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true;
+                         lift: also goal_feature=true
   reset/cut              python -m pasta.policy.reset epochs=45 start_step=0 points=1000 threads=1
                                                                 -> OUT/policy/cut/reset.* (+ reset_metrics.json)
   select/<skill>         python -m pasta.policy.select n=20 seed=2000 write=1 threads=1 (validation
                          configs; the rule goes into OUT/policy/<skill>/model.json, the per-config
                          results into select.json); cut thresholds=0.3,...,0.7
                          max_steps=0,40,45,50,55,60,65,70,80,100; roll thresholds=0.3,...,0.8
-                         min_steps=1,20 max_steps=0,60; lift thresholds=0.05,0.1,0.2,0.3,0.5
-                         max_steps=0,100,110,120,130,140
+                         min_steps=1,20 max_steps=0,60
   vae and cost train on every skill found in data; feasibility and cost use OUT/vae; reset and select
   run after every policy unit (a cut rule is chosen with the cut's reset pose in place).
 
@@ -78,7 +78,7 @@ examples:
   pasta pipeline stages=vae,feasibility,cost             # retrain from existing demonstrations
   pasta pipeline only=feasibility/cut feasibility.epochs=40   # one unit, with more epochs
   pasta pipeline stages=policy skills=cut,roll policy.epochs=20
-  pasta pipeline stages=select select.n=10              # re-choose the stopping rules (cut, roll, lift)
+  pasta pipeline stages=select select.n=10              # re-choose the stopping rules (cut, roll)
   pasta pipeline force=true only=cost                    # retrain the cost model even if done
   pasta pipeline backend=ray ray.address=auto workers=0  # demonstrations on the Ray cluster
   make train                                             # the same as `pasta pipeline`"""

@@ -16,7 +16,7 @@ the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.policy.eval
            [start_step=S] [reset=0] [learned_max_steps=N] [threads=1]
 
 (any :class:`SelectConfig` key; ``pasta pipeline`` runs it as its ``select`` stage for the policies of the
-skills whose plugin lists ``select`` in its ``training_defaults`` (built-ins: cut, roll and lift), ``write=1``, the result in ``OUT/policy/<skill>/select.json``.)
+skills whose plugin lists ``select`` in its ``training_defaults`` (built-ins: cut and roll), ``write=1``, the result in ``OUT/policy/<skill>/select.json``.)
 
 (``max_steps`` 0: no cap of the policy's own, only the skill's step limit; ``write=1`` stores the selected
 rule in the checkpoint's ``model.json`` under ``config.controller``, which

@@ -84,7 +84,8 @@ class FeasibilityTrainConfig:
 
 def train_dict(cfg: Any) -> dict[str, Any]:
     """``asdict(cfg)`` without ``flat`` when it is false, ``shift_axes`` when it is ``xz`` and ``shift_entities``
-    when it is ``all``, so checkpoints of earlier runs keep their old config (and resume)."""
+    when it is ``all`` (and the cost's ``translated_fraction`` when 0, with ``translate_max``), so checkpoints
+    of earlier runs keep their old config (and resume)."""
     d = asdict(cfg)
     if not d.get("flat", True):
         d.pop("flat")
@@ -92,6 +93,9 @@ def train_dict(cfg: Any) -> dict[str, Any]:
         d.pop("shift_axes")
     if d.get("shift_entities") == "all":
         d.pop("shift_entities")
+    if d.get("translated_fraction") == 0.0:  # the cost's: untranslated pairs, translate_max unused
+        d.pop("translated_fraction")
+        d.pop("translate_max", None)
     return d
 
 

@@ -150,11 +150,14 @@ def test_per_skill_settings_come_from_the_skill_plugins():
 
     units = {u.name: u for u in plan(PipelineConfig(stages="feasibility,policy"), {})}
     feas = {s: units[f"feasibility/{s}"].configs[1] for s in ("cut", "push", "roll")}
-    assert [(f.stride, f.shift_per_positive) for f in feas.values()] == [(3, 0), (4, 0), (4, 5)]
+    assert [(f.stride, f.shift_per_positive, f.shift_entities) for f in feas.values()] == [
+        (3, 5, "one"), (4, 0, "all"), (4, 5, "all")]
+    assert feas["cut"].shift_max == 0.25
     assert [units[f"feasibility/{s}"].configs[0].epochs for s in ("cut", "push", "roll")] == [30, 20, 20]
     pol = {s: units[f"policy/{s}"].configs[1] for s in ("cut", "push", "roll")}
     assert [(p.step_feature, p.pose_feature, p.start_at_reset) for p in pol.values()] == [
         (True, True, True), (False, False, False), (True, True, False)]
+    assert units["policy/lift"].configs[1].goal_feature and not pol["cut"].goal_feature
     # skills= restricts; a command-line key still wins over the plugin's default
     units = plan(*parse_arguments(["stages=feasibility", "skills=roll", "feasibility.roll.stride=2"]))
     assert [u.name for u in units] == ["feasibility/roll"] and units[0].configs[1].stride == 2

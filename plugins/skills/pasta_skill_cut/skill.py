@@ -284,11 +284,13 @@ class CutSkill(Skill):
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "min_travel", "fix_tolerance", "fix_far_side",
                                          "grid_dx", "plane_offset", "plane_slope", "stay_end_offset", "stay_end_slope")
-    #: `pasta pipeline` settings (docs/learning.md, docs/policies.md): the policy sees the execution step and
-    #: the tool pose and learns from its reset pose on (the align phase, which the learned reset pose
-    #: replaces, dropped from the demos); a learned reset pose (stage reset); the stopping-rule grid (select)
+    #: `pasta pipeline` settings (docs/learning.md, docs/policies.md): the feasibility also learns from near
+    #: misses that move one of the two halves 3-25 cm (a cut leaves its halves side by side); the policy sees
+    #: the execution step and the tool pose and learns from its reset pose on (the align phase, which the
+    #: learned reset pose replaces, dropped from the demos); a learned reset pose (stage reset); the
+    #: stopping-rule grid (select)
     training_defaults = {
-        "feasibility": {"stride": 3},
+        "feasibility": {"stride": 3, "shift_per_positive": 5, "shift_entities": "one", "shift_max": 0.25},
         "policy": {"step_feature": True, "pose_feature": True, "start_at_reset": True},
         "reset": {},
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},

@@ -100,11 +100,11 @@ class LiftSkill(Skill):
     spec = SPEC
     sweep_half_width = SPATULA_HALF[2]
     #: the shipped networks' settings (docs/learning.md, "The board skills": near misses made the feasibility
-    #: worse; docs/policies.md, "lift and gather": the policy's done head never fires, so a step cap is chosen)
+    #: worse; docs/policies.md, "lift and gather": without the goal offset the policy carried every piece the
+    #: same way and never stopped; with it, its own done head stops it, so no stopping rule is chosen)
     training_defaults = {
         "feasibility": {"stride": 4, "epochs": 8},
-        "policy": {"step_feature": True, "pose_feature": True},
-        "select": {"thresholds": "0.05,0.1,0.2,0.3,0.5", "min_steps": "1", "max_steps": "0,100,110,120,130,140"},
+        "policy": {"step_feature": True, "pose_feature": True, "goal_feature": True},
     }
 
     def __init__(self, config: LiftConfig | None = None) -> None:
