@@ -132,9 +132,8 @@ def search(
 
     timings["sample"] += time.perf_counter() - t0  # the fixed-entity filter and the clearance set-up
     result = optimise(sequences)
-    refine = int(getattr(config, "refine_sequences", 0) or 0)
-    if 0 < refine < len(sequences):
-        result = _refine(result, sequences, refine, optimise)
+    if 0 < config.refine_sequences < len(sequences):
+        result = _refine(result, sequences, config.refine_sequences, optimise)
     result.timings = timings
     result.fixed = fixed
     return result
@@ -153,7 +152,7 @@ def _refine(result: SearchResult, sequences: Sequence[Sequence[str]], count: int
     best, per_sequence = list(result.best), [dict(r) for r in result.per_sequence]
     for j, i in enumerate(ranked):
         row, new = per_sequence[i], again.per_sequence[j]
-        row["top_scores"] = sorted(row["top_scores"] + new["top_scores"], reverse=True)[: len(row["top_scores"]) or None]
+        row["top_scores"] = sorted(row["top_scores"] + new["top_scores"], reverse=True)[: len(row["top_scores"])]
         row["samples"] += new["samples"]
         row["refined"] = True
         if again.best[j] is not None and again.best[j][3] > best[i][3]:  # ties keep the first round's

@@ -90,9 +90,14 @@ def entity_pairs(demos: list[EncodedDemo], cfg: CostTrainConfig, *, seed: int = 
         offsets[moved] = direction * torch.from_numpy(rng.random((n, 1)) * cfg.translate_max).float()
         b[moved] = a[moved]
         b[moved, -3:] += offsets[moved]
-    second_clouds = torch.where(moved[:, None, None], clouds[first_t] + offsets[:, None, :], clouds[second_t])
-    labels = torch.cat([chamfer(clouds[first_t[i : i + 256]], second_clouds[i : i + 256]) for i in range(0, len(first), 256)])
-    return a, b, labels
+    labels = []
+    for i in range(0, len(first), 256):  # in chunks: all pairs' clouds at once would be ~0.25 GB per copy
+        one, two = clouds[first_t[i : i + 256]], clouds[second_t[i : i + 256]]
+        m = moved[i : i + 256]
+        if m.any():
+            two = torch.where(m[:, None, None], one + offsets[i : i + 256, None, :], two)
+        labels.append(chamfer(one, two))
+    return a, b, torch.cat(labels)
 
 
 class CostTask:

@@ -87,16 +87,16 @@ def train_dict(cfg: Any) -> dict[str, Any]:
     when it is ``all`` (and the cost's ``translated_fraction`` when 0, with ``translate_max``), so checkpoints
     of earlier runs keep their old config (and resume)."""
     d = asdict(cfg)
-    if not d.get("flat", True):
-        d.pop("flat")
-    if d.get("shift_axes") == "xz":
-        d.pop("shift_axes")
-    if d.get("shift_entities") == "all":
-        d.pop("shift_entities")
-    if d.get("translated_fraction") == 0.0:  # the cost's: untranslated pairs, translate_max unused
-        d.pop("translated_fraction")
-        d.pop("translate_max", None)
+    for key, before in _ADDED_LATER.items():
+        if key in d and d[key] == before:
+            d.pop(key)
+            if key == "translated_fraction":  # untranslated pairs: translate_max is unused
+                d.pop("translate_max", None)
     return d
+
+
+#: settings added after checkpoints were shipped, with the value that behaves as before they existed
+_ADDED_LATER = {"flat": False, "shift_axes": "xz", "shift_entities": "all", "translated_fraction": 0.0}
 
 
 def scope_config(cfg: Any) -> dict[str, str]:
