@@ -7,11 +7,12 @@ initial state with that goal cloud as its sub-goal, and is scored by the normali
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
 
-``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=a,b] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
+``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=a,b] [scene=VARIANT] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
 (the stopping rule: the checkpoint's own, ``config.controller``, unless given; a learned reset pose
 beside the policy, ``reset.*``, is used unless ``reset=0``, its step counter starting at ``start_step``.)
 (the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
-(``skills``: default every registered skill that can make demonstrations.)
+(``skills``: default every registered skill that can make demonstrations; ``scene``: a demonstration scene
+variant every listed skill has, e.g. ``skills=push scene=wide``, ``skills=roll scene=board``.)
 prints the table of docs/policies.md.
 """
 
@@ -45,21 +46,29 @@ class SkillConfig:
     params: dict[str, float]
 
 
-def _scene(skill: Any, rng: np.random.Generator, n: int, floor_y: float) -> np.ndarray:
-    """``(n, 3)`` particles of the skill's default demonstration scene (as ``pasta demos`` draws it)."""
+def _scene(skill: Any, rng: np.random.Generator, n: int, floor_y: float, scene: str = "default") -> np.ndarray:
+    """``(n, 3)`` particles of the skill's demonstration scene ``scene`` (as ``pasta demos`` draws it)."""
     from pasta.demos.scene import scene_boxes, scene_particles
 
-    return scene_particles(scene_boxes(skill, rng, floor_y), n, rng)[0]
+    return scene_particles(scene_boxes(skill, rng, floor_y, scene), n, rng)[0]
 
 
-def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10) -> list[SkillConfig]:
+def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10,
+                 scene: str = "default") -> list[SkillConfig]:
     """``n`` configs of ``skill``: scene and expert parameters from the stream ``(seed, crc32(skill), i)``
     (``pasta demos`` uses its own base seed, 0 by default, so a different ``seed`` gives held-out
-    configs), after ``settle_steps`` zero-action steps as in the demonstrations."""
+    configs), after ``settle_steps`` zero-action steps as in the demonstrations. ``scene``: a scene
+    variant of the skill (:attr:`pasta.core.Skill.demo_variants`, e.g. push's ``wide``), with its tools
+    placed as ``pasta demos`` places them; ``skill`` should carry that variant's config
+    (:func:`pasta.demos.generate.skill_config`) so that the expert's parameters are drawn as there."""
+    from pasta.demos.generate import demo_tools
+
     out = []
     for i in range(n):
         rng = np.random.default_rng([seed, zlib.crc32(skill.name.encode()), i])
-        sim.reset(_scene(skill, rng, sim.cfg.n_particles, sim.floor_y), seed=int(rng.integers(2**31)))
+        sim.reset(_scene(skill, rng, sim.cfg.n_particles, sim.floor_y, scene), seed=int(rng.integers(2**31)))
+        for name, pose in demo_tools(skill, scene).items():
+            sim.set_tool_pose(name, pose.position, yaw=pose.yaw)
         for _ in range(settle_steps):
             sim.step()
         params = {k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
@@ -155,9 +164,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     sim_kw = json.loads(args["sim"]) if "sim" in args else {}
     sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
+    from pasta.demos.generate import skill_config
+
+    scene = args.get("scene", "default")
     results = {}
     for name in names:
-        skill = get_plugins().skills.create(name)
+        skill = get_plugins().skills.create(name, skill_config(name, scene))
         if "learned" in controllers:
             kw = {"done_threshold": float(args["done_threshold"])} if "done_threshold" in args else {}
             for key in ("min_steps", "max_steps", "start_step"):
@@ -167,7 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 kw["reset"] = False  # ignore a learned reset pose beside the policy
             load_policy(models / POLICY_DIR / name, skill, **kw)
         max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
-        results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed), controllers,
+        results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed, scene=scene), controllers,
                                        learned_max_steps=max_steps)
     print(table(results))
     if "out" in args:
