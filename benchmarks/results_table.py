@@ -53,6 +53,23 @@ def setting_changes(summary: dict) -> str:
     return ", ".join(f"{k}={v}" for k, v in sorted(given.items()) if k in default and default[k] != v)
 
 
+def ablation_labels(summary: dict) -> str:
+    """The paper's ablations and the raw method, from what a summary recorded: feasibility networks trained
+    without hard negatives, one initialisation per attention structure, the goal-cloud corrections off."""
+    out = []
+    trained = summary.get("feasibility_training") or {}
+    if trained and all(t.get("hard_per_positive", 10) == 0 for t in trained.values()):
+        out.append("no hard negatives")
+    planner = summary.get("planner_settings") or {}
+    if planner.get("attention") == "enumerate":
+        draws = planner.get("num_samples")
+        out.append("no sampling" if draws == 1 else f"{draws} draws per attention structure")
+    exe = summary.get("execute_settings") or {}
+    if summary.get("method") != "oracle" and exe.get("goal_mass") is False and exe.get("goal_anchor") is False:
+        out.append("raw: goal corrections off")
+    return "".join(f", {x}" for x in out)
+
+
 def rows(directory: Path, split: str = "test") -> list[dict]:
     out = []
     for path in sorted(directory.glob("*.json")):
@@ -86,6 +103,7 @@ def main(argv: list[str]) -> int:
             name += f", {changed}"  # task.<setting>= (e.g. the distractor count)
         if s.get("controller") == "learned" and (s.get("execute_settings") or {}).get("regress_stop") == "off":
             name += ", regression stop off"  # execute.regress_stop=off: the learned policies' own stop only
+        name += ablation_labels(s)
         settings = s.get("planner_settings") or {}
         if s["method"] != "oracle" and "clearance_weight" not in settings:
             name += " (before clearance)"  # run before the clearance penalty and executor reorder existed

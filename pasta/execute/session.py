@@ -80,7 +80,26 @@ class Session:
                 "execute_settings": dataclasses.asdict(self.exe),
                 "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton,
                 "skills": [sk.name for sk in self.skills] if self.method != "oracle" else list(self.task.skeleton),
-                "task_config": dataclasses.asdict(self.task.config)}
+                "task_config": dataclasses.asdict(self.task.config),
+                "feasibility_training": self.feasibility_training()}
+
+    def feasibility_training(self) -> dict[str, dict[str, Any]]:
+        """Per planned skill, the negatives its feasibility network was trained with (``hard_per_positive``,
+        ``shift_per_positive`` from its checkpoint's ``model.json``; skills without one are left out), so a
+        summary tells an ablation's networks (e.g. no hard negatives) from the shipped ones."""
+        import json
+
+        out: dict[str, dict[str, Any]] = {}
+        if self.method == "oracle":
+            return out
+        for sk in self.skills:
+            path = Path(self.models) / "feasibility" / sk.name / "model.json"
+            try:
+                train = json.loads(path.read_text()).get("config", {}).get("train", {})
+            except (OSError, ValueError):
+                continue
+            out[sk.name] = {k: train[k] for k in ("hard_per_positive", "shift_per_positive") if k in train}
+        return out
 
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:
         """Plan and execute the task instance ``seed`` (generated and cached on first use) and score it."""

@@ -13,6 +13,7 @@ skill plus one (or two) cost-model calls, whatever the number of samples, sequen
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -198,6 +199,7 @@ def sample_candidates(
     num_samples: int,
     generator: torch.Generator,
     fixed: Sequence[tuple[int, int]] = (),
+    attention: str = "sample",
 ) -> CandidateBatch:
     """Draw ``num_samples`` candidates per sequence: random attention per sample and step, prior latents.
 
@@ -212,7 +214,13 @@ def sample_candidates(
             counting the fixed ones: :func:`free_feasible`).
         fixed: pairs ``(start row, goal index)``: those start entities are never attended, so the attention
             is drawn among the other ``K_h - F`` entities only, whatever the number of fixed ones.
+        attention: ``"sample"`` (the default above) or ``"enumerate"``: every attention structure of each
+            sequence (:func:`pasta.planning.attention.attention_structures`, fixed entities never attended),
+            ``num_samples`` latent draws for each, so a sequence has ``num_samples x structures`` candidates
+            (the paper's "no sampling" ablation: one initialisation per structure, ``num_samples = 1``).
     """
+    if attention not in ATTENTION_MODES:
+        raise InputError(f"attention must be one of {ATTENTION_MODES}, got {attention!r}")
     if num_samples < 1:
         raise InputError(f"num_samples must be >= 1, got {num_samples}")
     if not sequences:
@@ -230,15 +238,26 @@ def sample_candidates(
     for si, seq in enumerate(sequences):
         sig = signature_of(seq, skills)
         k = start.shape[0]
-        inputs, kept = [], []
-        pos = torch.tensor([i for i, _ in fixed], dtype=torch.long).expand(num_samples, -1).contiguous()  # (B, F)
-        for n, m in sig:
+        for n, m in sig:  # the set sizes are the same for every sample: check them up front
             if k - n_fixed < n:
                 extra = f" ({n_fixed} of them fixed)" if n_fixed else ""
                 raise InputError(f"sequence {list(seq)} consumes {n} entities from a set of {k}{extra}")
-            key = torch.rand(num_samples, k, generator=generator)
+            k += m - n
+        k = start.shape[0]
+        count = num_samples
+        if attention == "enumerate":
+            chosen = _enumerate_structures(sig, k, [i for i, _ in fixed])
+            count = num_samples * len(chosen[0])
+            chosen = [c.repeat_interleave(num_samples, dim=0) for c in chosen]
+        inputs, kept = [], []
+        pos = torch.tensor([i for i, _ in fixed], dtype=torch.long).expand(count, -1).contiguous()  # (B, F)
+        for h, (n, m) in enumerate(sig):
+            if attention == "enumerate":  # the chosen entities sort first, then the rest (fixed ones among them)
+                key = 1.0 + torch.zeros(count, k).scatter_(1, chosen[h], -1.0)
+            else:
+                key = torch.rand(count, k, generator=generator)
             if n_fixed:  # fixed entities sort last: never among the n consumed
-                key = key + 2.0 * torch.zeros(num_samples, k).scatter_(1, pos, 1.0)
+                key = key + 2.0 * torch.zeros(count, k).scatter_(1, pos, 1.0)
             perm = key.argsort(dim=1)
             inputs.append(perm[:, :n].sort(dim=1).values)
             kept.append(perm[:, n:].sort(dim=1).values)
@@ -246,9 +265,9 @@ def sample_candidates(
                 pos = m + torch.searchsorted(kept[-1], pos)
             k += m - n
         total = sum(m for _, m in sig)
-        lat = encoder.sample_prior(num_samples * total, generator).to(start.dtype).reshape(num_samples, total, dim)
+        lat = encoder.sample_prior(count * total, generator).to(start.dtype).reshape(count, total, dim)
         if own_boxes:  # centroids drawn in the encoder's box, mapped into each slot's box (same where they agree)
-            low, high = (b.to(start.dtype).expand(num_samples, -1, -1) for b in _slot_boxes(seq, skills, encoder))
+            low, high = (b.to(start.dtype).expand(count, -1, -1) for b in _slot_boxes(seq, skills, encoder))
             e_low, e_high = (torch.tensor(b, dtype=start.dtype) for b in (encoder.t_low, encoder.t_high))
             z = encoder.z_dim
             t = lat[..., z:]
@@ -264,7 +283,7 @@ def sample_candidates(
         groups.append(
             Group(
                 sig,
-                torch.cat([torch.full((num_samples,), si, dtype=torch.long) for si, *_ in items]),
+                torch.cat([torch.full((it[3].shape[0],), it[0], dtype=torch.long) for it in items]),
                 [torch.cat([it[1][h] for it in items]) for h in range(len(sig))],
                 [torch.cat([it[2][h] for it in items]) for h in range(len(sig))],
                 torch.cat([it[3] for it in items]),
@@ -274,6 +293,27 @@ def sample_candidates(
             )
         )
     return CandidateBatch(start, goal, sequences, names, groups, fixed=fixed)
+
+
+ATTENTION_MODES = ("sample", "enumerate")
+
+
+def _enumerate_structures(signature, start_size: int, fixed_rows: Sequence[int]) -> list[torch.Tensor]:
+    """Every attention structure of a cardinality ``signature`` from a set of ``start_size`` entities whose
+    rows ``fixed_rows`` are never attended -> per step ``h``, ``(S, N_h)`` consumed indices (``S``
+    structures, lexicographic order). A fixed entity's row after a step is ``M_h`` + its rank among the kept."""
+    rows: list[tuple[list[tuple[int, ...]], list[int]]] = [([], list(fixed_rows))]
+    k = start_size
+    for n, m in signature:
+        grown = []
+        for steps, fixed_now in rows:
+            free = [i for i in range(k) if i not in fixed_now]
+            for choice in itertools.combinations(free, n):
+                kept = [i for i in range(k) if i not in choice]
+                grown.append((steps + [choice], [m + kept.index(p) for p in fixed_now]))
+        rows, k = grown, k + m - n
+    return [torch.tensor([steps[h] for steps, _ in rows], dtype=torch.long).reshape(len(rows), n)
+            for h, (n, _) in enumerate(signature)]
 
 
 def free_feasible(sequence: Sequence[str], skills: Mapping[str, Skill], start_size: int, num_fixed: int) -> bool:

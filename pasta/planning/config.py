@@ -19,6 +19,10 @@ class LatentPlannerConfig(PluginConfig):
     # score plateaus far earlier (docs/planning.md: ~50 per sequence for crs with random networks; the
     # analytic test problem needs ~128), so the default is sized for a CPU.
     num_samples: int = 128
+    # How attention is drawn: "sample" (each candidate draws its own, num_samples per sequence) or "enumerate"
+    # (every attention structure of a sequence, num_samples latent draws each). With num_samples=1 and
+    # refine_sequences=0, "enumerate" is the paper's "no sampling" ablation: one initialisation per structure.
+    attention: str = "sample"
     iterations: int = 100  # optimiser iterations (paper 100-300); the last one only evaluates
     # Adam learning rate on the sub-goal latents. The paper used 0.01; with our VAE latents and 100 iterations
     # 0.05 found the right crs skeleton on 4/4 test configs against 0/4 at 0.01 (docs/planning.md).
@@ -66,6 +70,7 @@ class LatentPlannerConfig(PluginConfig):
             check_number(getattr(self, key), f"planner.{key}", low=0.0)
         check_choice(self.objective, "planner.objective", ("log", "product"))
         check_choice(self.matching, "planner.matching", ("auto", "frozen", "recompute"))
+        check_choice(self.attention, "planner.attention", ("sample", "enumerate"))
 
 
 @dataclass

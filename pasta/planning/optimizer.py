@@ -119,7 +119,7 @@ def search(
     def optimise(seqs: Sequence[Sequence[str]]) -> SearchResult:
         t_a = time.perf_counter()
         batch = sample_candidates(start, problem.goal, seqs, problem.skill_map, problem.encoder, config.num_samples,
-                                  generator, fixed=fixed)
+                                  generator, fixed=fixed, attention=config.attention)
         drawn = batch.size  # before halving shrinks the batch
         t_b = time.perf_counter()
         opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance)

@@ -14,6 +14,7 @@ of a demonstration is (its first step, the dough after the skill), see
 
 from __future__ import annotations
 
+import functools
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -27,6 +28,8 @@ from pasta.nn.loading import FEASIBILITY_MODULE
 from pasta.train.latents import EncodedDemo, changed_entities
 
 WEIGHTS = (0.5, 0.25, 0.25)
+# hard negatives per held-out positive for val_auc_hard when training uses none (hard_per_positive=0)
+MEASURED_HARD = 10
 
 
 @dataclass
@@ -36,7 +39,8 @@ class FeasibilityTrainConfig:
     Attributes:
         skill: the skill whose demonstrations are the positives (required).
         hidden: network width.
-        hard_per_positive: hard negatives per positive.
+        hard_per_positive: hard negatives per positive (0: none, the paper's "no hard negatives" ablation;
+            random negatives only, held-out hard negatives still measured).
         shift_per_positive: near-miss negatives per positive: the tuple with its produced entities
             moved together by ``shift_min``..``shift_max`` in the table plane (x, z). Right for skills
             that cannot carry dough far (roll, cut): without them the network accepts an output a few
@@ -180,12 +184,15 @@ class FeasibilityTask:
         self.train_in, self.train_out = train
         self.val_in, self.val_out = val if len(val[0]) else train
         gen = torch.Generator().manual_seed(seed + 1)
-        self.val_hard = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive, self.prior, gen)
+        # hard negatives are always measured (val_auc_hard; MEASURED_HARD copies when training uses none, the
+        # paper's "no hard negatives" ablation), and in the validation loss only when training uses them
+        plain = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive or MEASURED_HARD, self.prior, gen)
         # near misses, always measured (val_auc_shift), trained on only with shift_per_positive > 0
         self.val_shift = shifted_negatives(self.val_in, self.val_out, 2, self.z_dim, cfg.shift_min, cfg.shift_max, gen,
                                            cfg.shift_axes, cfg.shift_entities)
-        if cfg.shift_per_positive > 0:
-            self.val_hard = _cat(self.val_hard, self.val_shift)
+        self.val_hard = _cat(plain, self.val_shift) if cfg.shift_per_positive > 0 else plain
+        trained = ([plain] if cfg.hard_per_positive > 0 else []) + ([self.val_shift] if cfg.shift_per_positive > 0 else [])
+        self.val_hard_trained = functools.reduce(_cat, trained) if trained else None
         m = len(self.val_in)
         self.val_random = (self.prior(m * n_in, gen).view(m, n_in, -1), self.prior(m * n_out, gen).view(m, n_out, -1))
         # where the skill's produced entities lay (all positives): the planner's box for its sub-goals
@@ -211,18 +218,24 @@ class FeasibilityTask:
 
     def loss(self, batch: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
         u_in, u_out = self._noisy(self.train_in[batch], generator), self._noisy(self.train_out[batch], generator)
-        hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
+        hard = None
+        if self.cfg.hard_per_positive > 0:
+            hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
         if self.cfg.shift_per_positive > 0:
-            hard = _cat(hard, shifted_negatives(u_in, u_out, self.cfg.shift_per_positive, self.z_dim,
-                                                self.cfg.shift_min, self.cfg.shift_max, generator, self.cfg.shift_axes,
-                                                self.cfg.shift_entities))
+            near = shifted_negatives(u_in, u_out, self.cfg.shift_per_positive, self.z_dim, self.cfg.shift_min,
+                                     self.cfg.shift_max, generator, self.cfg.shift_axes, self.cfg.shift_entities)
+            hard = near if hard is None else _cat(hard, near)
         b, n, m = len(batch), u_in.shape[1], u_out.shape[1]
         rand = (self.prior(b * n, generator).view(b, n, -1), self.prior(b * m, generator).view(b, m, -1))
         return self._weighted((u_in, u_out), hard, rand)
 
     def _weighted(self, pos, hard, rand) -> torch.Tensor:
+        """The weighted BCE of positives, hard (``None``: none trained on) and random negatives."""
         terms = []
-        for (a, b), label, w in zip((pos, hard, rand), (1.0, 0.0, 0.0), WEIGHTS):
+        for pair, label, w in zip((pos, hard, rand), (1.0, 0.0, 0.0), WEIGHTS):
+            if pair is None:
+                continue
+            a, b = pair
             logits = self.model.logits(a, b)
             terms.append(w * F.binary_cross_entropy_with_logits(logits, torch.full_like(logits, label)))
         return sum(terms)
@@ -240,7 +253,7 @@ class FeasibilityTask:
             return float(roc_auc_score(np.r_[np.ones(len(pos)), np.zeros(len(neg))], np.r_[pos, neg]))
 
         return {
-            "val_loss": float(self._weighted((self.val_in, self.val_out), self.val_hard, self.val_random)),
+            "val_loss": float(self._weighted((self.val_in, self.val_out), self.val_hard_trained, self.val_random)),
             "val_auc_hard": auc(hard),
             "val_auc_random": auc(rand),
             "val_auc_shift": auc(shift),

@@ -66,3 +66,33 @@ def test_one_entity_moves_and_the_others_stay():
     assert train_dict(FeasibilityTrainConfig(skill="cut", shift_entities="one"))["shift_entities"] == "one"
     with pytest.raises(ConfigError, match="shift_entities"):
         shifted_negatives(u_in, u_out, 1, Z, 0.03, 0.1, torch.Generator(), "xz", "some")
+
+
+def _task(hard: int, shift: int = 0):
+    from pasta.plugins.analytic import AnalyticEncoder
+    from pasta.train.feasibility import FeasibilityTask
+
+    enc = AnalyticEncoder()
+    g = torch.Generator().manual_seed(0)
+    pos = lambda b: (torch.rand(b, 1, enc.latent_dim, generator=g), torch.rand(b, 2, enc.latent_dim, generator=g))  # noqa: E731
+    cfg = FeasibilityTrainConfig(skill="cut", hard_per_positive=hard, shift_per_positive=shift)
+    return FeasibilityTask("cut", 1, 2, pos(64), pos(32), enc, cfg)
+
+
+@pytest.mark.parametrize("shift", [0, 2])
+def test_no_hard_negatives_trains_on_random_ones_and_still_measures_hard(shift):
+    """``hard_per_positive=0`` (the paper's ablation): a finite loss without the hard term; val_auc_hard is
+    still measured on held-out hard negatives, which the validation loss leaves out as training does."""
+    without, with_hard = _task(0, shift), _task(10, shift)
+    loss = without.loss(torch.arange(16), torch.Generator().manual_seed(0))
+    assert torch.isfinite(loss)
+    metrics = without.validate()
+    assert all(torch.isfinite(torch.tensor(v)) for v in metrics.values())
+    assert len(without.val_hard[0]) == len(with_hard.val_hard[0])  # the same held-out negatives measured
+    if shift == 0:
+        assert without.val_hard_trained is None and with_hard.val_hard_trained is not None
+        with torch.no_grad():
+            base = without._weighted((without.val_in, without.val_out), None, without.val_random)
+        assert float(base) == pytest.approx(metrics["val_loss"])
+    else:  # only the near misses are trained on, so only they count in the validation loss
+        assert len(without.val_hard_trained[0]) == len(without.val_shift[0])

@@ -159,7 +159,12 @@ class PushSkill(Skill):
     #: with x up to 0.7 (the default box ends at 0.32), as cut_rearrange needs
     demo_variants = {"wide": DemoVariant(config={"target_x_max": 0.7}, pipeline_demos=150,
                                          description="pieces up to 0.25 long on the right, targets with x up to 0.7")}
-    training_defaults = {"feasibility": {"stride": 4, "epochs": 20}}
+    #: the policy sees its step count, the tool pose and the goal offset (with these and the wide demonstrations,
+    #: 0.96 on held-out wide configs; the one-frame policy of the default demonstrations alone, 0.45)
+    training_defaults = {
+        "feasibility": {"stride": 4, "epochs": 20},
+        "policy": {"step_feature": True, "pose_feature": True, "goal_feature": True},
+    }
 
     def __init__(self, config: PushConfig | None = None) -> None:
         super().__init__(config if config is not None else PushConfig())
