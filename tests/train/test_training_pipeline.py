@@ -156,8 +156,8 @@ def test_per_skill_settings_come_from_the_skill_plugins():
     assert [units[f"feasibility/{s}"].configs[0].epochs for s in ("cut", "push", "roll")] == [30, 20, 20]
     pol = {s: units[f"policy/{s}"].configs[1] for s in ("cut", "push", "roll")}
     assert [(p.step_feature, p.pose_feature, p.start_at_reset) for p in pol.values()] == [
-        (True, True, True), (False, False, False), (True, True, False)]
-    assert units["policy/lift"].configs[1].goal_feature and not pol["cut"].goal_feature
+        (True, True, True), (True, True, False), (True, True, False)]
+    assert units["policy/lift"].configs[1].goal_feature and pol["push"].goal_feature and not pol["cut"].goal_feature
     # skills= restricts; a command-line key still wins over the plugin's default
     units = plan(*parse_arguments(["stages=feasibility", "skills=roll", "feasibility.roll.stride=2"]))
     assert [u.name for u in units] == ["feasibility/roll"] and units[0].configs[1].stride == 2
