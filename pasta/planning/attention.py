@@ -35,13 +35,31 @@ def attention_structures(problem: PlanningProblem, skeleton: Sequence[str],
     """
     skills = problem.skill_map
     k = len(problem.obs) if start_size is None else int(start_size)
-    options = []
     for h, name in enumerate(skeleton):
         if name not in skills:
             raise InputError(f"skeleton step {h} uses skill '{name}', not one of the problem's skills {list(skills)}")
         spec = skills[name].spec
         if k < spec.n_in:
             raise InputError(f"skeleton {list(skeleton)} step {h}: '{name}' consumes {spec.n_in} entities of a set of {k}")
-        options.append(list(itertools.combinations(range(k), spec.n_in)))
         k += spec.delta
-    return [list(choice) for choice in itertools.product(*options)]
+    signature = [(skills[name].spec.n_in, skills[name].spec.n_out) for name in skeleton]
+    start = len(problem.obs) if start_size is None else int(start_size)
+    return signature_structures(signature, start)
+
+
+def signature_structures(signature: Sequence[tuple[int, int]], start_size: int,
+                         fixed_rows: Sequence[int] = ()) -> list[list[tuple[int, ...]]]:
+    """Every attention structure of a cardinality ``signature`` ``((N_h, M_h), ...)`` from ``start_size``
+    entities, in lexicographic order, never attending the entities at ``fixed_rows`` of the start set (after
+    a step, such an entity sits at ``M_h`` + its rank among the kept ones, the set convention above)."""
+    rows: list[tuple[list[tuple[int, ...]], list[int]]] = [([], list(fixed_rows))]
+    k = int(start_size)
+    for n, m in signature:
+        grown = []
+        for steps, fixed_now in rows:
+            free = [i for i in range(k) if i not in fixed_now]
+            for choice in itertools.combinations(free, n):
+                kept = [i for i in range(k) if i not in choice]
+                grown.append((steps + [choice], [m + kept.index(p) for p in fixed_now]))
+        rows, k = grown, k + m - n
+    return [steps for steps, _ in rows]

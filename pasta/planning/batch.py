@@ -13,7 +13,6 @@ skill plus one (or two) cost-model calls, whatever the number of samples, sequen
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -22,6 +21,7 @@ import torch
 from pasta.core import CostModel, Encoder, Skill
 from pasta.core.errors import InputError
 from pasta.core.matching import min_cost_matching
+from pasta.planning.attention import signature_structures
 from pasta.planning.clearance import Clearance
 
 
@@ -299,20 +299,9 @@ ATTENTION_MODES = ("sample", "enumerate")
 
 
 def _enumerate_structures(signature, start_size: int, fixed_rows: Sequence[int]) -> list[torch.Tensor]:
-    """Every attention structure of a cardinality ``signature`` from a set of ``start_size`` entities whose
-    rows ``fixed_rows`` are never attended -> per step ``h``, ``(S, N_h)`` consumed indices (``S``
-    structures, lexicographic order). A fixed entity's row after a step is ``M_h`` + its rank among the kept."""
-    rows: list[tuple[list[tuple[int, ...]], list[int]]] = [([], list(fixed_rows))]
-    k = start_size
-    for n, m in signature:
-        grown = []
-        for steps, fixed_now in rows:
-            free = [i for i in range(k) if i not in fixed_now]
-            for choice in itertools.combinations(free, n):
-                kept = [i for i in range(k) if i not in choice]
-                grown.append((steps + [choice], [m + kept.index(p) for p in fixed_now]))
-        rows, k = grown, k + m - n
-    return [torch.tensor([steps[h] for steps, _ in rows], dtype=torch.long).reshape(len(rows), n)
+    """:func:`pasta.planning.attention.signature_structures` as per step ``h`` an ``(S, N_h)`` index tensor."""
+    rows = signature_structures(signature, start_size, fixed_rows)
+    return [torch.tensor([steps[h] for steps in rows], dtype=torch.long).reshape(len(rows), n)
             for h, (n, _) in enumerate(signature)]
 
 
