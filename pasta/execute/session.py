@@ -84,21 +84,16 @@ class Session:
                 "feasibility_training": self.feasibility_training()}
 
     def feasibility_training(self) -> dict[str, dict[str, Any]]:
-        """Per planned skill, the negatives its feasibility network was trained with (``hard_per_positive``,
-        ``shift_per_positive`` from its checkpoint's ``model.json``; skills without one are left out), so a
+        """Per planned skill, the negatives its attached feasibility network was trained with
+        (``hard_per_positive``, ``shift_per_positive`` of its checkpoint; skills without one are left out), so a
         summary tells an ablation's networks (e.g. no hard negatives) from the shipped ones."""
-        import json
-
         out: dict[str, dict[str, Any]] = {}
         if self.method == "oracle":
             return out
         for sk in self.skills:
-            path = Path(self.models) / "feasibility" / sk.name / "model.json"
-            try:
-                train = json.loads(path.read_text()).get("config", {}).get("train", {})
-            except (OSError, ValueError):
-                continue
-            out[sk.name] = {k: train[k] for k in ("hard_per_positive", "shift_per_positive") if k in train}
+            train = getattr(getattr(sk, "feasibility_model", None), "train_settings", None)
+            if train is not None:
+                out[sk.name] = {k: train[k] for k in ("hard_per_positive", "shift_per_positive") if k in train}
         return out
 
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:

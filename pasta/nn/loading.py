@@ -40,6 +40,7 @@ def load_feasibility(
     model.load_state_dict(ckpt.tensors)
     box = c.get("output_box")  # networks trained before it was recorded have none (pasta.core.Skill.output_box)
     model.output_box = None if box is None else (tuple(float(v) for v in box[0]), tuple(float(v) for v in box[1]))
+    model.train_settings = dict(c.get("train") or {})  # how it was trained (e.g. its negatives), for run summaries
     return model.requires_grad_(False).to(device).eval()
 
 

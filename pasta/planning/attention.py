@@ -43,8 +43,7 @@ def attention_structures(problem: PlanningProblem, skeleton: Sequence[str],
             raise InputError(f"skeleton {list(skeleton)} step {h}: '{name}' consumes {spec.n_in} entities of a set of {k}")
         k += spec.delta
     signature = [(skills[name].spec.n_in, skills[name].spec.n_out) for name in skeleton]
-    start = len(problem.obs) if start_size is None else int(start_size)
-    return signature_structures(signature, start)
+    return signature_structures(signature, len(problem.obs) if start_size is None else int(start_size))
 
 
 def signature_structures(signature: Sequence[tuple[int, int]], start_size: int,

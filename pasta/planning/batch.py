@@ -22,6 +22,7 @@ from pasta.core import CostModel, Encoder, Skill
 from pasta.core.errors import InputError
 from pasta.core.matching import min_cost_matching
 from pasta.planning.attention import signature_structures
+from pasta.planning.config import ATTENTION_MODES
 from pasta.planning.clearance import Clearance
 
 
@@ -293,9 +294,6 @@ def sample_candidates(
             )
         )
     return CandidateBatch(start, goal, sequences, names, groups, fixed=fixed)
-
-
-ATTENTION_MODES = ("sample", "enumerate")
 
 
 def _enumerate_structures(signature, start_size: int, fixed_rows: Sequence[int]) -> list[torch.Tensor]:

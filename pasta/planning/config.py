@@ -6,6 +6,9 @@ from dataclasses import dataclass, field
 
 from pasta.core import PluginConfig
 
+#: how a search draws attention (LatentPlannerConfig.attention)
+ATTENTION_MODES = ("sample", "enumerate")
+
 
 @dataclass
 class LatentPlannerConfig(PluginConfig):
@@ -70,7 +73,7 @@ class LatentPlannerConfig(PluginConfig):
             check_number(getattr(self, key), f"planner.{key}", low=0.0)
         check_choice(self.objective, "planner.objective", ("log", "product"))
         check_choice(self.matching, "planner.matching", ("auto", "frozen", "recompute"))
-        check_choice(self.attention, "planner.attention", ("sample", "enumerate"))
+        check_choice(self.attention, "planner.attention", ATTENTION_MODES)
 
 
 @dataclass
