@@ -1,7 +1,7 @@
 """Plan (no execution) task instances with one or more planners and print the plan objective side by side.
 
     python benchmarks/replan.py --task crs --horizon 6 --seeds 1000 1001 1002 \
-        --planner prefix_beam --planner "exhaustive planner.max_horizon=6" [--skeleton false] \
+        --planner prefix_beam --planner "exhaustive planner.max_horizon=6" [--skeleton false] [--skills cut,push,roll] \
         [--reference docs/results/crs_pasta_h6.jsonl]
 
 Each ``--planner`` is a planner name followed by ``planner.KEY=VALUE`` overrides. The problem is built as
@@ -26,6 +26,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[1000])
     ap.add_argument("--planner", action="append", default=[], help='"NAME planner.k=v ..." (repeatable)')
     ap.add_argument("--skeleton", default="false")
+    ap.add_argument("--skills", default="", help="comma-separated skills to plan with (default: the task's default set)")
     ap.add_argument("--reference", default="")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--json", default="", help="also write the rows here (JSON lines)")
@@ -47,7 +48,8 @@ def main(argv: list[str]) -> int:
     for spec in planners:
         name, *over = spec.split()
         sessions.append((spec, build_session(args.task, config_overrides=[f"planner={name}", *over],
-                                             horizon=args.horizon or None, skeleton=args.skeleton)))
+                                             horizon=args.horizon or None, skeleton=args.skeleton,
+                                             **({"skills": args.skills} if args.skills else {}))))
     sim = sessions[0][1].task.make_sim()
     print(f"| seed | planner | plan score | plan s | skeleton |")
     print("|---:|---|---:|---:|---|")
@@ -68,9 +70,9 @@ def main(argv: list[str]) -> int:
             wall = time.perf_counter() - t0
             print(f"| {seed} | {spec} | {plan.score:.4f} | {wall:.1f} | {'-'.join(plan.skills)} |", flush=True)
             rows.append({"seed": seed, "planner": spec, "score": plan.score, "plan_s": wall, "skeleton": list(plan.skills),
-                         "horizon": session.horizon, "task": args.task})
-    if args.json:
-        Path(args.json).write_text("".join(json.dumps(r) + "\n" for r in rows))
+                         "horizon": session.horizon, "task": args.task, "skills": [s.name for s in session.skills]})
+            if args.json:  # after every plan: a killed run keeps what it measured
+                Path(args.json).write_text("".join(json.dumps(r) + "\n" for r in rows))
     return 0
 
 

@@ -21,6 +21,8 @@ The batched latent optimiser (what the built-in planners use):
   ``"cem"``) and ``config_class`` (a :class:`LatentPlannerConfig` subclass).
 - :func:`search` ``(problem, sequences, config, generator) -> SearchResult``: all samples of all
   sequences optimised in a few tensor ops per iteration.
+- :func:`receding_search` ``(problem, sequences, config, generator, window=) -> RecedingResult``: optimise a
+  window of steps, commit its first, slide (``receding_horizon``; ``prefix_beam``'s ``finish=receding``).
 - :func:`sample_candidates`, :func:`evaluate`: the candidate batch and its evaluation (:mod:`pasta.planning.batch`).
 """
 
@@ -43,6 +45,8 @@ _EXPORTS = {
     "HalvingConfig": "pasta.planning.config",
     "search": "pasta.planning.optimizer",
     "SearchResult": "pasta.planning.optimizer",
+    "receding_search": "pasta.planning.receding",
+    "RecedingResult": "pasta.planning.receding",
     "sample_candidates": "pasta.planning.batch",
     "evaluate": "pasta.planning.batch",
     "CandidateBatch": "pasta.planning.batch",

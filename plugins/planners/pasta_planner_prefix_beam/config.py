@@ -15,7 +15,13 @@ class PrefixBeamConfig(HalvingConfig):
     # steps re-optimised when a prefix is extended: the last `window` steps, from the set the parent reached
     # before them (1: only the new step, from the parent's end set)
     window: int = 2
-    final: int = 6  # complete sequences optimised jointly at the end (num_samples / iterations as above)
+    final: int = 6  # complete sequences optimised at the end (num_samples / iterations as above)
+    # how the final sequences are optimised: "joint" (every step at once from the observed set, the
+    # objective exhaustive maximises), "receding" (a window of `finish_window` steps at a time, committing
+    # the first, as the receding_horizon planner does) or "hybrid" (the skeleton the joint search chose,
+    # its sub-goals planned as "receding" does)
+    finish: str = "joint"
+    finish_window: int = 3
     prefix_samples: int = 16  # samples per child sequence in the prefix searches
     prefix_iterations: int = 30  # iterations of each prefix search
     # as exhaustive's: 0: only sequences of the problem's horizon H; N > 0: every complete sequence of
@@ -24,7 +30,7 @@ class PrefixBeamConfig(HalvingConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        from pasta.config.validate import check_int
+        from pasta.config.validate import check_choice, check_int
 
         check_int(self.width, "planner.width", low=1)
         check_int(self.final, "planner.final", low=1)
@@ -32,3 +38,5 @@ class PrefixBeamConfig(HalvingConfig):
         check_int(self.prefix_samples, "planner.prefix_samples", low=1)
         check_int(self.prefix_iterations, "planner.prefix_iterations", low=0)
         check_int(self.max_horizon, "planner.max_horizon", low=0)
+        check_choice(self.finish, "planner.finish", ("joint", "receding", "hybrid"))
+        check_int(self.finish_window, "planner.finish_window", low=1)

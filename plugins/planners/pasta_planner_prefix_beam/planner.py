@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import torch
 
 from pasta.core import CardinalityError, Plan, PlanningProblem, kept_indices
-from pasta.planning import LatentPlanner, search
+from pasta.planning import LatentPlanner, receding_search, search
 from pasta_planner_prefix_beam.config import PrefixBeamConfig
 
 
@@ -38,8 +38,11 @@ class PrefixBeamPlanner(LatentPlanner):
     of the same count). Every child whose entity count equals the goal's is a complete candidate (only
     length ``H``, or with ``max_horizon = N > 0`` any length ``1..N``, as ``exhaustive``); the ``final``
     best of them are optimised jointly from the observed set with ``num_samples`` x ``iterations`` (the
-    same :func:`search` and objective as ``exhaustive``), and the best wins. A given ``problem.skeleton``
-    is searched directly. At most ``width * C`` searches per depth (``C`` entity counts), each over at
+    same :func:`search` and objective as ``exhaustive``), and the best wins; with ``finish=receding``
+    they are searched a window of ``finish_window`` steps at a time instead (:func:`receding_search`,
+    as ``receding_horizon`` does: better sub-goals for the first steps of long plans); ``finish=hybrid``
+    takes the skeleton the joint search chose and plans its sub-goals with :func:`receding_search`. A given
+    ``problem.skeleton`` skips the beam (and with ``finish=receding`` plans as ``receding_horizon``). At most ``width * C`` searches per depth (``C`` entity counts), each over at
     most ``K`` sequences of ``window`` steps, instead of ``K^H`` sequences.
     """
 
@@ -57,10 +60,21 @@ class PrefixBeamPlanner(LatentPlanner):
         else:
             sequences, stages, prefix_timings = self._beam(problem, gen)
             timings["beam"] = prefix_timings
-        result = search(problem, sequences, cfg, gen, method=self.method)
-        timings["sample"], timings["optimise"] = result.timings["sample"], result.timings["optimise"]
+        results, receding = [], None
+        if cfg.finish != "receding":  # jointly, as exhaustive optimises each sequence
+            results.append(search(problem, sequences, cfg, gen, method=self.method))
+        if cfg.finish != "joint":  # a window at a time from the observed set: "receding" over the kept
+            # sequences, "hybrid" over the one the joint search chose (its skeleton, receding sub-goals)
+            chosen = [results[0].skeleton] if results else sequences
+            receding = receding_search(problem, chosen, cfg, gen, window=int(cfg.finish_window), method=self.method)
+            results += receding.results
+        result = receding or results[0]
+        for key in ("sample", "optimise"):
+            timings[key] = sum(r.timings[key] for r in results)
         timings["enumerate"] = time.perf_counter() - t0 - sum(timings.values())
-        info = self.info(sequences, [result])
+        info = self.info(sequences, results)
+        if receding is not None:
+            info["finish"] = {"mode": str(cfg.finish), "window": int(cfg.finish_window), "stages": receding.stages()}
         info["beam"] = {"width": int(cfg.width), "final": int(cfg.final), "prefix_samples": int(cfg.prefix_samples),
                         "prefix_iterations": int(cfg.prefix_iterations), "max_horizon": int(cfg.max_horizon),
                         "prefix_searches": sum(s["searches"] for s in stages),

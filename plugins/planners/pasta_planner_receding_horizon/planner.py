@@ -4,11 +4,9 @@ from __future__ import annotations
 
 import time
 
-import torch
-
-from pasta.core import Plan, PlanningProblem, kept_indices
+from pasta.core import Plan, PlanningProblem
 from pasta.core.errors import ConfigError
-from pasta.planning import LatentPlanner, search
+from pasta.planning import LatentPlanner, receding_search
 from pasta_planner_receding_horizon.config import RecedingHorizonConfig
 
 
@@ -33,29 +31,9 @@ class RecedingHorizonPlanner(LatentPlanner):
         t0 = time.perf_counter()
         full = problem.skeletons()
         timings = {"enumerate": time.perf_counter() - t0, "sample": 0.0, "optimise": 0.0}
-        gen = self.generator(problem)
-        skills: list[str] = []
-        attention: list[tuple[int, ...]] = []
-        subgoals: list[torch.Tensor] = []
-        results = []
-        state = problem.obs
-        fixed = list(problem.fixed)  # (row in the committed set, goal index): where the fixed entities are now
-        horizon = len(full[0])
-        for h in range(horizon):
-            w = min(int(cfg.window), horizon - h)
-            windows = list(dict.fromkeys(s[h : h + w] for s in full if list(s[:h]) == skills))
-            result = search(problem, windows, cfg, gen, method=self.method, start=state, fixed=fixed)
-            for key in ("sample", "optimise"):
-                timings[key] += result.timings[key]
-            results.append(result)
-            skills.append(result.skeleton[0])
-            attention.append(result.attention[0])
-            subgoals.append(result.subgoals[0])
-            kept = list(kept_indices(len(state), result.attention[0]))
-            m = result.subgoals[0].shape[0]
-            fixed = [(m + kept.index(i), j) for i, j in result.fixed]  # a search without them drops them
-            state = torch.cat([result.subgoals[0], state[kept]], 0)
-        info = self.info(full, results)
+        result = receding_search(problem, full, cfg, self.generator(problem), window=int(cfg.window), method=self.method)
+        timings.update(result.timings)
+        info = self.info(full, result.results)
         info["window"] = int(cfg.window)
-        info["stages"] = [{"windows": len(r.per_sequence), "committed": skills[i], "score": r.score} for i, r in enumerate(results)]
-        return self.package(problem, tuple(skills), attention, subgoals, timings=timings, info=info)
+        info["stages"] = result.stages()
+        return self.package(problem, result.skeleton, result.attention, result.subgoals, timings=timings, info=info)
