@@ -30,6 +30,9 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--reference", default="")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--json", default="", help="also write the rows here (JSON lines)")
+    ap.add_argument("--seed-offset", type=int, default=0,
+                    help="plan with seed + this: another draw of the point subsampling and of the planner's "
+                         "samples, for the run-to-run spread (0: as `pasta eval` plans)")
     args = ap.parse_args(argv)
     import torch
 
@@ -65,12 +68,13 @@ def main(argv: list[str]) -> int:
             skeleton = tuple(inst.skeleton[: session.horizon]) if session.use_skeleton else None
             t0 = time.perf_counter()
             plan = plan_from_clouds(sim.observe().dough, inst.goal, planner=session.planner, skills=session.skills,
-                                    encoder=session.encoder, cost=session.cost, horizon=session.horizon, seed=seed,
+                                    encoder=session.encoder, cost=session.cost, horizon=session.horizon,
+                                    seed=seed + args.seed_offset,
                                     skeleton=skeleton, min_points=session.exe.min_points)
             wall = time.perf_counter() - t0
             print(f"| {seed} | {spec} | {plan.score:.4f} | {wall:.1f} | {'-'.join(plan.skills)} |", flush=True)
             rows.append({"seed": seed, "planner": spec, "score": plan.score, "plan_s": wall, "skeleton": list(plan.skills),
-                         "horizon": session.horizon, "task": args.task, "skills": [s.name for s in session.skills]})
+                         "horizon": session.horizon, "task": args.task, "seed_offset": args.seed_offset, "skills": [s.name for s in session.skills]})
             if args.json:  # after every plan: a killed run keeps what it measured
                 Path(args.json).write_text("".join(json.dumps(r) + "\n" for r in rows))
     return 0

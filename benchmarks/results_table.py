@@ -53,6 +53,32 @@ def setting_changes(summary: dict) -> str:
     return ", ".join(f"{k}={v}" for k, v in sorted(given.items()) if k in default and default[k] != v)
 
 
+#: planner keys not labelled: the attention mode is the "no sampling" ablation's label (ablation_labels)
+UNLABELLED_PLANNER_KEYS = ("name", "attention")
+
+
+def planner_changes(summary: dict) -> str:
+    """``"final=24"`` for a run whose planner settings differ from that planner's defaults (its registered
+    config), so a tuned run does not read as the default one; runs that recorded no settings give ``""``."""
+    settings = summary.get("planner_settings") or {}
+    name = settings.get("name") or summary.get("planner")
+    if not settings or not name:
+        return ""
+    from dataclasses import asdict, is_dataclass
+
+    from pasta.plugins import get_plugins
+
+    planners = get_plugins(report=False).planners
+    if name not in planners:
+        return ""
+    default = planners.default_config(name)
+    default = asdict(default) if is_dataclass(default) else {}
+    skip = set(UNLABELLED_PLANNER_KEYS)
+    if settings.get("attention") == "enumerate":  # labelled "no sampling" / "N draws per attention structure"
+        skip |= {"num_samples", "refine_sequences"}
+    return ", ".join(f"{k}={v}" for k, v in sorted(settings.items()) if k in default and k not in skip and default[k] != v)
+
+
 def ablation_labels(summary: dict) -> str:
     """The paper's ablations and the raw method, from what a summary recorded: feasibility networks trained
     without hard negatives, one initialisation per attention structure, the goal-cloud corrections off."""
@@ -101,6 +127,9 @@ def main(argv: list[str]) -> int:
             name += ", no skeleton"  # the skeleton is given for crs_twice by default, as in the paper
         if changed:
             name += f", {changed}"  # task.<setting>= (e.g. the distractor count)
+        tuned = planner_changes(s)
+        if tuned:
+            name += f", {tuned}"  # planner.<key>= other than the planner's defaults (e.g. final=24)
         if s.get("controller") == "learned" and (s.get("execute_settings") or {}).get("regress_stop") == "off":
             name += ", regression stop off"  # execute.regress_stop=off: the learned policies' own stop only
         name += ablation_labels(s)

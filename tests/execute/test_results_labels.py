@@ -36,3 +36,15 @@ def test_each_ablation_is_named():
     assert label(summary(execute_settings=raw)) == ", raw: goal corrections off"
     assert label(summary(execute_settings={"goal_mass": False, "goal_anchor": True})) == ""
     assert label(summary(method="oracle", execute_settings=raw)) == ""
+
+
+def test_planner_settings_other_than_the_planners_defaults_are_named():
+    changes = results_table.planner_changes
+    beam = {"name": "prefix_beam", "attention": "sample", "num_samples": 128, "final": 24, "max_horizon": 6, "width": 3}
+    assert changes({"planner": "prefix_beam", "planner_settings": beam}) == "final=24, max_horizon=6"
+    assert changes({"planner": "prefix_beam", "planner_settings": {**beam, "final": 6, "max_horizon": 0}}) == ""
+    # the no-sampling ablation's own keys are its label, not repeated
+    ablation = {"name": "exhaustive", "attention": "enumerate", "num_samples": 1, "refine_sequences": 0}
+    assert changes({"planner": "exhaustive", "planner_settings": ablation}) == ""
+    assert changes({"planner": "exhaustive"}) == ""  # runs that recorded no settings
+    assert changes({"planner": "no_such_planner", "planner_settings": {"name": "no_such_planner", "x": 1}}) == ""
