@@ -42,8 +42,9 @@ class PrefixBeamPlanner(LatentPlanner):
     they are searched a window of ``finish_window`` steps at a time instead (:func:`receding_search`,
     as ``receding_horizon`` does: better sub-goals for the first steps of long plans); ``finish=hybrid``
     takes the skeleton the joint search chose and plans its sub-goals with :func:`receding_search`. A given
-    ``problem.skeleton`` skips the beam (and with ``finish=receding`` plans as ``receding_horizon``). At most ``width * C`` searches per depth (``C`` entity counts), each over at
-    most ``K`` sequences of ``window`` steps, instead of ``K^H`` sequences.
+    ``problem.skeleton`` skips the beam (and with ``finish=receding`` plans as ``receding_horizon``). At
+    most ``width * C`` searches per depth (``C`` entity counts), each over at most ``K`` sequences of
+    ``window`` steps, instead of ``K^H`` sequences.
     """
 
     name = "prefix_beam"
