@@ -74,7 +74,8 @@ def main(argv: list[str]) -> int:
             wall = time.perf_counter() - t0
             print(f"| {seed} | {spec} | {plan.score:.4f} | {wall:.1f} | {'-'.join(plan.skills)} |", flush=True)
             rows.append({"seed": seed, "planner": spec, "score": plan.score, "plan_s": wall, "skeleton": list(plan.skills),
-                         "horizon": session.horizon, "task": args.task, "seed_offset": args.seed_offset, "skills": [s.name for s in session.skills]})
+                         "horizon": session.horizon, "task": args.task, "seed_offset": args.seed_offset,
+                         "skills": [s.name for s in session.skills]})
             if args.json:  # after every plan: a killed run keeps what it measured
                 Path(args.json).write_text("".join(json.dumps(r) + "\n" for r in rows))
     return 0

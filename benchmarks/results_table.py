@@ -49,8 +49,12 @@ def setting_changes(summary: dict) -> str:
 
     from pasta.tasks import get_task
 
-    default = asdict(get_task(summary["task"]).config)
-    return ", ".join(f"{k}={v}" for k, v in sorted(given.items()) if k in default and default[k] != v)
+    return changed_keys(given, asdict(get_task(summary["task"]).config))
+
+
+def changed_keys(given: dict, default: dict, skip: set[str] | frozenset[str] = frozenset()) -> str:
+    """``"k=v, ..."`` for the keys of ``given`` that ``default`` has, outside ``skip``, with another value."""
+    return ", ".join(f"{k}={v}" for k, v in sorted(given.items()) if k in default and k not in skip and default[k] != v)
 
 
 #: planner keys not labelled: the attention mode is the "no sampling" ablation's label (ablation_labels)
@@ -76,7 +80,7 @@ def planner_changes(summary: dict) -> str:
     skip = set(UNLABELLED_PLANNER_KEYS)
     if settings.get("attention") == "enumerate":  # labelled "no sampling" / "N draws per attention structure"
         skip |= {"num_samples", "refine_sequences"}
-    return ", ".join(f"{k}={v}" for k, v in sorted(settings.items()) if k in default and k not in skip and default[k] != v)
+    return changed_keys(settings, default, skip)
 
 
 def ablation_labels(summary: dict) -> str:

@@ -25,7 +25,7 @@ def test_commits_one_step_per_search_and_ends_on_a_given_sequence():
 
 
 def test_sequences_of_different_lengths_stop_where_the_best_window_ends():
-    # a one-step window over ("move",) and ("move", "flatten", ...) and a sequence that is a prefix of another
+    # sequences of 1, 2 and 3 steps, each a prefix of the next
     sequences = [("flatten",), ("flatten", "flatten"), ("flatten", "flatten", "flatten")]
     res = _run(sequences, window=1)
     assert res.skeleton in sequences

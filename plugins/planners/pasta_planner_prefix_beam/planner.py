@@ -69,7 +69,7 @@ class PrefixBeamPlanner(LatentPlanner):
             chosen = [results[0].skeleton] if results else sequences
             receding = receding_search(problem, chosen, cfg, gen, window=int(cfg.finish_window), method=self.method)
             results += receding.results
-        result = receding or results[0]
+        result = receding if receding is not None else results[0]
         for key in ("sample", "optimise"):
             timings[key] = sum(r.timings[key] for r in results)
         timings["enumerate"] = time.perf_counter() - t0 - sum(timings.values())
