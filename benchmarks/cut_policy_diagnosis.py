@@ -29,7 +29,9 @@ import torch
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    from pasta.config.overrides import script_args
+
+    args = script_args(argv, __doc__, "python benchmarks/cut_policy_diagnosis.py")
     torch.set_num_threads(int(args.get("threads", 1)))
     from pasta.core import ToolPose
     from pasta.core.metrics import emd, normalized_improvement
@@ -58,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         goal = sim.observe().dough
         emd0 = emd(piece, goal, n=500, seed=cfg.seed)
         centroid = float(piece[:, 0].mean())
-        pred = centroid + policy.reset.offset(piece, goal) if policy.reset is not None else centroid
+        pred = policy.reset.tool_x(skill, piece, goal) if policy.reset is not None else centroid
         knife = np.array(expert.trajectory.tool_pose)[:, :3]
         row = {"seed": cfg.seed, "cut_x": cfg.params["cut_x"], "shift": cfg.params["shift"], "centroid_x": centroid,
                "pred_x": float(pred), "expert_steps": expert.steps, "expert_final_x": float(knife[-1, 0])}

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import re
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -247,6 +247,21 @@ class Skill:
     def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
         """Where the expert with ``params`` starts on ``piece (P, 3)``; ``scene (S, 3)``: all dough, to avoid."""
         raise self._missing("scripted expert", "the skill plugin does not define `expert_approach_pose`")
+
+    # -- learned reset pose (optional; `pasta.policy.reset`) ------------------------------------------
+    def reset_target(self, tool_x: float) -> tuple[float, ...]:
+        """What a learned reset pose regresses for a demonstration whose tool started at ``tool_x``:
+        quantities the goal shows directly. The first is an ``x`` coordinate (learned as an offset from
+        the piece centroid), any others are unitless. Default: ``(tool_x,)``. Override it (with its
+        inverse :meth:`reset_tool_x`) when the tool's effect is not where the tool is, e.g. the cut: the
+        dough parts up to a grid cell away from the knife, depending on where the knife lies in its
+        cell, so the regressor learns the plane where the dough parts and that phase, and the skill
+        places the knife."""
+        return (float(tool_x),)
+
+    def reset_tool_x(self, target: Sequence[float]) -> float:
+        """The tool's start ``x`` for a regressed :meth:`reset_target` (its inverse; default: ``target[0]``)."""
+        return float(target[0])
 
     # -- demonstrations (filled by skill plugins; used by `pasta demos`, the pipeline and evaluation) --
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list[SceneBox]:

@@ -146,7 +146,9 @@ def table(results: dict[str, dict[str, list[dict[str, Any]]]]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     import torch
 
-    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    from pasta.config.overrides import script_args
+
+    args = script_args(argv, __doc__, "python -m pasta.policy.evaluate")
     models = Path(args.get("models", "models"))
     n, seed = int(args.get("n", 20)), int(args.get("seed", 1000))
     if "skills" in args:

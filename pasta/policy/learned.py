@@ -94,8 +94,10 @@ class LearnedPolicy:
 
     def approach_pose(self, skill: Skill, piece: np.ndarray, goal: np.ndarray | None,
                       scene: np.ndarray | None = None) -> Any:
-        """The learned start pose of the tool: the skill's approach pose with ``x`` replaced by the piece
-        centroid ``x`` plus the regressor's offset; ``None`` without a regressor (or a goal)."""
+        """The learned start pose of the tool: the skill's approach pose with ``x`` replaced by the
+        regressor's (:meth:`pasta.policy.reset.ResetPose.tool_x`: the piece centroid ``x`` plus its offset,
+        through the skill's ``reset_tool_x`` when it learned the skill's target); ``None`` without a
+        regressor (or a goal)."""
         if self.reset is None or goal is None:
             return None
         from pasta.core import ToolPose
@@ -104,8 +106,7 @@ class LearnedPolicy:
             base = skill.approach_pose(piece, goal, scene=scene)
         except TypeError:
             base = skill.approach_pose(piece, goal)
-        x = float(np.asarray(piece, np.float64)[:, 0].mean()) + self.reset.offset(piece, goal)
-        return ToolPose((x, *base.position[1:]), base.yaw)
+        return ToolPose((self.reset.tool_x(skill, piece, goal), *base.position[1:]), base.yaw)
 
     @torch.no_grad()
     def predict(self, dough: np.ndarray, tool: np.ndarray, goal: np.ndarray,

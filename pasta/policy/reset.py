@@ -4,6 +4,9 @@
 centroid in ``x, z``; a fourth input channel tells the two sources apart) with mean + max pooling; it
 regresses the tool's ``x`` offset from the dough centroid at the end of the expert's align phase: the
 first demonstration step whose action has a vertical component (where the knife starts descending).
+With ``target="skill"`` it regresses the skill's :meth:`~pasta.core.skill.Skill.reset_target` of that
+``x`` instead (the cut: the plane where the dough parts and the knife's phase in its grid cell), and the
+skill turns the prediction back into a tool ``x`` (:meth:`~pasta.core.skill.Skill.reset_tool_x`).
 
 The learned controller then starts there (:meth:`pasta.policy.learned.LearnedPolicy.approach_pose`),
 with its step counter at ``start_step`` (stored in the checkpoint, chosen on validation configs).
@@ -28,6 +31,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from pasta.core.errors import ConfigError
+
 __all__ = ["MODULE", "ResetConfig", "ResetPoseNet", "ResetTrainConfig", "align_offset", "load_reset", "reset_command",
            "reset_inputs", "train_reset"]
 
@@ -40,7 +45,11 @@ NAME = "reset"
 class ResetConfig:
     """Sizes of :class:`ResetPoseNet`; ``scale``: metres per unit of the regressed offset;
     ``start_step``: the policy's step counter when it starts from the predicted pose; ``draws``: at
-    inference, the offset is the mean over this many seeded point subsamples (1: one, as trained)."""
+    inference, the offset is the mean over this many seeded point subsamples (1: one, as trained);
+    ``target``: what the offset is of, ``"tool"`` (the tool ``x``; checkpoints without the key) or
+    ``"skill"`` (the skill's ``reset_target`` of it, turned back by ``reset_tool_x``); ``outputs``: how
+    many values the network regresses (``R``: the first an ``x`` offset in metres, the others unitless;
+    ``len(skill.reset_target(x))`` for ``"skill"``)."""
 
     points: int = 512
     widths: list[int] = field(default_factory=lambda: [64, 128, 256])
@@ -48,6 +57,8 @@ class ResetConfig:
     scale: float = 0.05
     start_step: int = 1
     draws: int = 1
+    target: str = "tool"
+    outputs: int = 1
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
@@ -64,13 +75,17 @@ def _mlp(sizes: Sequence[int], last_act: bool = True) -> nn.Sequential:
 
 
 class ResetPoseNet(nn.Module):
-    """``points (B, N, 4)`` (x, y, z, source: 0 dough / 1 goal) -> offset ``(B,)`` in metres."""
+    """``points (B, N, 4)`` (x, y, z, source: 0 dough / 1 goal) -> ``(B, R)``: the offset in metres, then
+    ``R - 1`` unitless values (``R = cfg.outputs``)."""
 
     def __init__(self, cfg: ResetConfig | None = None) -> None:
         super().__init__()
         self.cfg = cfg or ResetConfig()
         self.point_mlp = _mlp([4, *self.cfg.widths])
-        self.head = _mlp([4 * self.cfg.widths[-1], *self.cfg.head, 1], last_act=False)
+        self.head = _mlp([4 * self.cfg.widths[-1], *self.cfg.head, self.cfg.outputs], last_act=False)
+        units = torch.ones(self.cfg.outputs)
+        units[0] = self.cfg.scale
+        self.register_buffer("units", units, persistent=False)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         src = points[..., 3:4]
@@ -80,7 +95,7 @@ class ResetPoseNet(nn.Module):
             n = w.sum(1).clamp_min(1.0)
             pooled.append((h * w).sum(1) / n)
             pooled.append((h * w - (1.0 - w) * 1e4).amax(1))
-        return self.head(torch.cat(pooled, -1)).squeeze(-1) * self.cfg.scale
+        return self.head(torch.cat(pooled, -1)) * self.units
 
 
 def reset_inputs(dough: np.ndarray, goal: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -116,12 +131,28 @@ class ResetPose:
     def start_step(self) -> int:
         return int(self.net.cfg.start_step)
 
+    @property
+    def target(self) -> str:
+        return str(self.net.cfg.target)
+
+    def tool_x(self, skill: Any, piece: np.ndarray, goal: np.ndarray) -> float:
+        """The tool's start ``x`` for ``piece (P, 3)`` and ``goal (G, 3)``: the piece centroid ``x`` plus
+        the predicted offset, through ``skill.reset_tool_x`` when the regressor learned the skill's target."""
+        y = self.predict(piece, goal)
+        y[0] += float(np.asarray(piece, np.float64)[:, 0].mean())
+        return float(skill.reset_tool_x(tuple(float(v) for v in y))) if self.target == "skill" else float(y[0])
+
     @torch.no_grad()
-    def offset(self, piece: np.ndarray, goal: np.ndarray) -> float:
-        """The predicted offset; the mean over ``cfg.draws`` subsamples (seeds ``seed``, ``seed + 1``, ...)."""
+    def predict(self, piece: np.ndarray, goal: np.ndarray) -> np.ndarray:
+        """The regressed values ``(R,)`` (the first an offset from the piece centroid ``x``); the mean over
+        ``cfg.draws`` subsamples (seeds ``seed``, ``seed + 1``, ...)."""
         draws = max(1, int(self.net.cfg.draws))
         pts = [reset_inputs(piece, goal, self.net.cfg.points, np.random.default_rng(self.seed + i))[0] for i in range(draws)]
-        return float(self.net(torch.as_tensor(np.stack(pts))).mean())
+        return self.net(torch.as_tensor(np.stack(pts))).mean(0).numpy().astype(np.float64)
+
+    def offset(self, piece: np.ndarray, goal: np.ndarray) -> float:
+        """The predicted offset ``x`` (metres) from the piece centroid (:meth:`predict`'s first value)."""
+        return float(self.predict(piece, goal)[0])
 
 
 def load_reset(directory: str | Path) -> ResetPose | None:
@@ -136,34 +167,86 @@ def load_reset(directory: str | Path) -> ResetPose | None:
     return ResetPose(net)
 
 
-def _dataset(demos: Sequence[Any]) -> list[tuple[np.ndarray, np.ndarray, float, int]]:
+def _dataset(demos: Sequence[Any], skill: Any = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+    """``(dough, goal, targets (R,), align steps)`` per demo: the tool's offset from the dough centroid
+    ``x``, or with ``skill`` its ``reset_target`` of the tool ``x`` (the first value as an offset)."""
     out = []
     for d in demos:
         off, k = align_offset(d)
-        out.append((np.asarray(d.dough[0], np.float32), np.asarray(d.after, np.float32), off, k))
+        dough = np.asarray(d.dough[0], np.float32)
+        y = np.array([off], np.float32)
+        if skill is not None:
+            c = float(np.asarray(dough, np.float64)[:, 0].mean())
+            y = np.asarray(skill.reset_target(c + off), np.float64)
+            y[0] -= c
+        out.append((dough, np.asarray(d.after, np.float32), y.astype(np.float32), k))
     return out
 
 
-def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: float) -> tuple[torch.Tensor, torch.Tensor]:
+def decoded_pieces(goal: np.ndarray, encoder: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The pieces of ``goal (G, 3)`` (DBSCAN, :func:`pasta.core.decompose.decompose_labels`), each with
+    its reconstruction by ``encoder`` (encoded, decoded to the piece's own point count): the kind of
+    piece a plan's decoded sub-goal hands a policy at execution."""
+    from pasta.core.decompose import decompose_labels
+
+    labels = decompose_labels(goal)
+    pieces = [np.asarray(goal[labels == k], np.float32) for k in range(int(labels.max()) + 1)]
+    out = []
+    for piece in pieces:
+        with torch.no_grad():
+            u = encoder.encode(piece[None])
+            rec = encoder.decode(u, len(piece))
+        out.append((piece, np.asarray(rec.detach().cpu().numpy() if hasattr(rec, "detach") else rec, np.float32)[0]))
+    return out
+
+
+def _goal_draw(goal: np.ndarray, pieces: Sequence[tuple[np.ndarray, np.ndarray]] | None, p: float,
+               rng: np.random.Generator) -> np.ndarray:
+    """``goal`` with each of its ``pieces`` replaced by its reconstruction with probability ``p``."""
+    if not pieces or p <= 0:
+        return goal
+    return np.concatenate([rec if rng.random() < p else exact for exact, rec in pieces])
+
+
+def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: float,
+           decoded: Sequence[Any] | None = None, p_decoded: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
     xs, ys = [], []
-    for dough, goal, off, _ in items:
+    for i, (dough, goal, off, _) in enumerate(items):
+        if decoded is not None:
+            goal = _goal_draw(goal, decoded[i], p_decoded, rng)
         pts, _ = reset_inputs(dough, goal, n, rng)
         if noise > 0:
             pts[:, :3] += rng.uniform(-noise, noise, pts[:, :3].shape).astype(np.float32)
         xs.append(pts)
         ys.append(off)
-    return torch.as_tensor(np.stack(xs)), torch.as_tensor(np.array(ys, np.float32))
+    return torch.as_tensor(np.stack(xs)), torch.as_tensor(np.stack(ys).astype(np.float32))
 
 
 def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | None = None, *, epochs: int = 300,
                 batch_size: int = 32, lr: float = 1e-3, noise: float = 0.002, seed: int = 0,
-                log: bool = False) -> tuple[ResetPoseNet, dict[str, Any]]:
-    """Fit the regressor on ``train`` demos (their align offsets), keep the epoch with the lowest mean
-    absolute error on ``val`` (``train`` itself when empty); returns the net and its metrics."""
+                log: bool = False, skill: Any = None, encoder: Any = None,
+                decoded_goals: float = 0.0) -> tuple[ResetPoseNet, dict[str, Any]]:
+    """Fit the regressor on ``train`` demos (their align offsets, or with ``cfg.target == "skill"`` the
+    offsets of ``skill.reset_target``), keep the epoch with the lowest mean absolute error on ``val``
+    (``train`` itself when empty); returns the net and its metrics (held-out errors in the regressed
+    target and, for ``"skill"``, of the tool ``x`` the skill places from it). ``decoded_goals``: the
+    probability that a training sample's goal piece is replaced by its ``encoder`` reconstruction
+    (:func:`decoded_pieces`), as a plan's decoded sub-goals are at execution. Held-out errors are on the
+    demonstrations' own goals."""
     cfg = cfg or ResetConfig()
+    if cfg.target not in ("tool", "skill"):
+        raise ValueError(f"reset target must be 'tool' or 'skill', got {cfg.target!r}")
+    if cfg.target == "skill" and skill is None:
+        raise ValueError("reset target 'skill' needs the skill (its reset_target)")
+    own = skill if cfg.target == "skill" else None
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    tr, va = _dataset(train), _dataset(val or train)
+    tr, va = _dataset(train, own), _dataset(val or train, own)
+    if len(tr[0][2]) != cfg.outputs:
+        raise ValueError(f"the regressor has {cfg.outputs} outputs but the targets have {len(tr[0][2])} values")
+    if decoded_goals > 0 and encoder is None:
+        raise ValueError("decoded_goals needs the encoder that decodes the goal pieces")
+    decoded = [decoded_pieces(t[1], encoder) for t in tr] if decoded_goals > 0 else None
     net = ResetPoseNet(cfg)
     opt = torch.optim.Adam(net.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, max(1, epochs))
@@ -173,15 +256,17 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
         net.train()
         order = rng.permutation(len(tr))
         for i in range(0, len(order), batch_size):
-            x, y = _batch([tr[j] for j in order[i:i + batch_size]], cfg.points, rng, noise)
-            loss = nn.functional.smooth_l1_loss(net(x) / cfg.scale, y / cfg.scale, beta=0.05)
+            idx = order[i:i + batch_size]
+            x, y = _batch([tr[j] for j in idx], cfg.points, rng, noise,
+                          None if decoded is None else [decoded[j] for j in idx], decoded_goals)
+            loss = nn.functional.smooth_l1_loss(net(x) / net.units, y / net.units, beta=0.05)
             opt.zero_grad()
             loss.backward()
             opt.step()
         sched.step()
         net.eval()
         with torch.no_grad():
-            mae = float((net(vx) - vy).abs().mean())
+            mae = float((net(vx) - vy)[:, 0].abs().mean())
         if mae < best:
             best, best_epoch = mae, epoch
             best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
@@ -191,11 +276,21 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
     net.load_state_dict(best_state)
     net.eval()
     with torch.no_grad():
-        err = (net(vx) - vy).abs().numpy()
-    metrics = {"train_demos": len(tr), "heldout_demos": len(va), "best_epoch": best_epoch,
+        pred = net(vx).numpy()
+    errs = np.abs(pred - vy.numpy())
+    err = errs[:, 0]
+    metrics = {"target": cfg.target, "train_demos": len(tr), "heldout_demos": len(va), "best_epoch": best_epoch,
                "heldout_mae_m": float(err.mean()), "heldout_median_ae_m": float(np.median(err)),
-               "heldout_max_ae_m": float(err.max()), "target_std_m": float(np.std([t[2] for t in va])),
+               "heldout_max_ae_m": float(err.max()), "target_std_m": float(np.std([t[2][0] for t in va])),
                "demo_align_steps_median": float(np.median([t[3] for t in tr]))}
+    if cfg.outputs > 1:  # the unitless values (the cut: the knife's phase in its cell)
+        metrics["heldout_mae_other"] = [float(v) for v in errs[:, 1:].mean(0)]
+    if own is not None:  # what the tool does with it: the skill's tool x against the demos' own
+        tool_err = []
+        for (dough, _, _, _), d, p in zip(va, val or train, pred):
+            c = float(np.asarray(dough, np.float64)[:, 0].mean())
+            tool_err.append(abs(own.reset_tool_x((c + float(p[0]), *(float(v) for v in p[1:]))) - (c + align_offset(d)[0])))
+        metrics.update(heldout_tool_mae_m=float(np.mean(tool_err)), heldout_tool_median_ae_m=float(np.median(tool_err)))
     return net, metrics
 
 
@@ -211,6 +306,10 @@ class ResetTrainConfig:
         start_step: the policy's step counter when it starts at the predicted pose (stored in ``reset.json``).
         points: points of the dough and of the goal fed to the regressor (each).
         draws: at inference, average the offset over this many point subsamples (stored in ``reset.json``).
+        target: ``tool`` (regress the tool ``x``) or ``skill`` (the skill's ``reset_target`` of it, e.g.
+            the cut's plane and phase; docs/policies.md, "The cut's reset pose and the grid cell").
+        decoded_goals: probability that a goal piece of a training sample is replaced by its VAE
+            reconstruction (``encoder_weights``; empty: the shipped VAE), as at execution.
         threads: torch CPU threads (0: leave as is).
         progress: print the held-out error every 20 epochs (stderr).
     """
@@ -224,6 +323,9 @@ class ResetTrainConfig:
     start_step: int = 1
     points: int = 512
     draws: int = 1
+    target: str = "tool"
+    decoded_goals: float = 0.0
+    encoder_weights: str = ""
     threads: int = 1
     progress: bool = True
 
@@ -235,17 +337,29 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
     ``overrides``: :class:`ResetTrainConfig` keys (a typo fails with the closest valid key)."""
     from pasta.config.overrides import build
     from pasta.io.checkpoint import save_checkpoint
+    from pasta.plugins import get_plugins
     from pasta.train.data import load_demos, split_by_demo
 
     from pasta.train.loop import torch_threads
 
     cfg = build(ResetTrainConfig, dict(overrides or {}), command="python -m pasta.policy.reset")
+    if cfg.target not in ("tool", "skill"):
+        raise ConfigError(f"python -m pasta.policy.reset: target must be tool or skill, got {cfg.target!r}")
+    skill_obj = get_plugins().skills.create(skill)
     demos = load_demos(data, [skill])
     train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=cfg.seed)
-    net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws)
+    outputs = len(skill_obj.reset_target(0.5)) if cfg.target == "skill" else 1
+    net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws, target=cfg.target, outputs=outputs)
     with torch_threads(cfg.threads):
+        encoder = None
+        if cfg.decoded_goals > 0:
+            from pasta.nn.config import PointVAEEncoderConfig
+            from pasta.nn.encoders import PointVAEEncoder
+
+            encoder = PointVAEEncoder(PointVAEEncoderConfig(weights=cfg.encoder_weights))
         net, metrics = train_reset(train, val, net_cfg, epochs=cfg.epochs, batch_size=cfg.batch_size, lr=cfg.lr,
-                                   noise=cfg.noise, seed=cfg.seed, log=cfg.progress)
+                                   noise=cfg.noise, seed=cfg.seed, log=cfg.progress, skill=skill_obj, encoder=encoder,
+                                   decoded_goals=cfg.decoded_goals)
     out = Path(out)
     save_checkpoint(out, module=MODULE, name=NAME, tensors=net.state_dict(),
                     config={"skill": skill, "network": asdict(net_cfg)}, state=metrics)
@@ -255,7 +369,9 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    from pasta.config.overrides import script_args
+
+    args = script_args(argv, __doc__, "python -m pasta.policy.reset")
     data, skill = args.pop("data", "data/demos"), args.pop("skill", "")
     if not skill:
         raise SystemExit("python -m pasta.policy.reset: give skill=NAME (its demonstrations in DATA/NAME)")

@@ -292,7 +292,9 @@ def grid_table(doc: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = dict(a.split("=", 1) for a in (sys.argv[1:] if argv is None else argv))
+    from pasta.config.overrides import script_args
+
+    args = script_args(argv, __doc__, "python -m pasta.policy.select")
     models = Path(args.pop("models", "models"))
     name = args.pop("skill", "")
     if not name:

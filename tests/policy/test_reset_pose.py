@@ -2,6 +2,7 @@
 beside the policy, and a policy directory without one loads and starts as before."""
 
 import numpy as np
+import pytest
 import torch
 
 from pasta.core import ToolPose
@@ -10,7 +11,7 @@ from pasta.io.checkpoint import save_checkpoint
 from pasta.policy.learned import LearnedPolicy, PolicyController
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.reset import MODULE, NAME, ResetConfig, align_offset, load_reset, train_reset
+from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, align_offset, load_reset, train_reset
 from pasta.train.data import Demo
 
 TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
@@ -63,11 +64,17 @@ class _Skill:
         return ToolPose((float(c[0]), 0.3, float(c[2])), 0.0)
 
 
-class _Reset:
-    start_step = 3
+class _Reset(ResetPose):
+    """A regressor that always predicts 0.02 m right of the centroid, in tool ``x``."""
 
-    def offset(self, piece, goal):
-        return 0.02
+    start_step = 3
+    target = "tool"
+
+    def __init__(self):
+        pass
+
+    def predict(self, piece, goal):
+        return np.array([0.02])
 
 
 def _policy_dir(tmp_path):
@@ -150,3 +157,105 @@ def load_reset_from(directory, net, cfg, *, draws):
     save_checkpoint(directory, module=MODULE, name=NAME, tensors=net.state_dict(),
                     config={"skill": "cut", "network": vars(replace(cfg, draws=draws))})
     return load_reset(directory)
+
+
+class _ShiftedEffect:
+    """A skill whose tool acts 3 cm right of where it stands (the learned target is the effect's x)."""
+
+    name = "cut"
+
+    def reset_target(self, tool_x):
+        return (tool_x + 0.03,)
+
+    def reset_tool_x(self, target):
+        return target[0] - 0.03
+
+
+def test_regressor_on_the_skill_target_places_the_tool_through_the_skill(tmp_path):
+    rng = np.random.default_rng(0)
+    demos = [_cut_demo(i, rng)[0] for i in range(6)]
+    skill = _ShiftedEffect()
+    cfg = ResetConfig(points=32, widths=[32, 64], head=[64], target="skill")
+    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0, skill=skill)
+    assert metrics["target"] == "skill" and metrics["heldout_tool_mae_m"] < 0.006, metrics  # a constant: ~0.025
+    save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
+    reset = load_reset(tmp_path)
+    assert reset.target == "skill"
+    d = demos[0]
+    true_x = float(d.dough[0][:, 0].mean()) + align_offset(d)[0]
+    # the network predicts the effect 3 cm right of the tool; the skill turns it back into the tool's x
+    assert abs(reset.offset(d.dough[0], d.after) - (align_offset(d)[0] + 0.03)) < 0.01
+    assert abs(reset.tool_x(skill, d.dough[0], d.after) - true_x) < 0.01
+    with pytest.raises(ValueError, match="needs the skill"):
+        train_reset(demos, [], cfg, epochs=1, seed=0)
+
+
+def test_checkpoints_without_a_target_regress_the_tool_x():
+    cfg = ResetConfig.from_dict({"points": 32, "widths": [32], "head": [16]})  # a reset.json written before the key
+    assert cfg.target == "tool"
+    reset = ResetPose(ResetPoseNet(cfg))
+    piece = np.random.default_rng(0).uniform(0.4, 0.6, (30, 3)).astype(np.float32)
+    assert np.isclose(reset.tool_x(_ShiftedEffect(), piece, piece), piece[:, 0].mean() + reset.offset(piece, piece), atol=1e-6)
+
+
+def test_reset_command_rejects_an_unknown_target(tmp_path):
+    from pasta.policy.reset import reset_command
+
+    with pytest.raises(ValueError, match="target must be tool or skill"):
+        reset_command(tmp_path, tmp_path, "cut", {"target": "plane"})
+
+
+class _EffectAndSide:
+    """A skill with two regressed values: the effect's x (3 cm right of the tool) and which side of 0.5
+    the tool stands (unitless)."""
+
+    name = "cut"
+
+    def reset_target(self, tool_x):
+        return (tool_x + 0.03, float(tool_x > 0.5))
+
+    def reset_tool_x(self, target):
+        return target[0] - 0.03
+
+
+def test_regressor_learns_every_value_of_a_multi_value_target():
+    rng = np.random.default_rng(0)
+    demos = [_cut_demo(i, rng)[0] for i in range(6)]
+    with pytest.raises(ValueError, match="1 outputs but the targets have 2 values"):
+        train_reset(demos, [], ResetConfig(points=32, widths=[32], head=[16], target="skill"), epochs=1, skill=_EffectAndSide())
+    cfg = ResetConfig(points=32, widths=[32, 64], head=[64], target="skill", outputs=2)
+    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0, skill=_EffectAndSide())
+    assert metrics["heldout_tool_mae_m"] < 0.006 and metrics["heldout_mae_other"][0] < 0.25, metrics  # a constant: ~0.45
+    reset = ResetPose(net)
+    d = demos[0]
+    y = reset.predict(d.dough[0], d.after)
+    assert y.shape == (2,) and np.isclose(y[0], reset.offset(d.dough[0], d.after))
+
+
+class _FakeEncoder:
+    """``encode`` -> the centroid; ``decode`` -> ``n`` points at that centroid (a maximal blur)."""
+
+    def encode(self, points):
+        return torch.as_tensor(np.asarray(points, np.float32).mean(1))
+
+    def decode(self, latents, n):
+        return torch.as_tensor(latents)[:, None, :].repeat(1, n, 1)
+
+
+def test_decoded_goal_augmentation_replaces_whole_pieces():
+    from pasta.policy.reset import _goal_draw, decoded_pieces
+
+    rng = np.random.default_rng(0)
+    bar = np.c_[np.linspace(0.4, 0.6, 200), np.full(200, 0.02), np.full(200, 0.5)].astype(np.float32)
+    goal = bar.copy()
+    goal[goal[:, 0] < 0.5, 0] -= 0.08  # the left part moved 8 cm: two pieces
+    pieces = decoded_pieces(goal, _FakeEncoder())
+    assert [len(e) for e, _ in pieces] == [100, 100] and np.allclose(pieces[0][1], pieces[0][0].mean(0))
+    same = _goal_draw(goal, pieces, 0.0, rng)
+    assert np.allclose(same, goal)
+    blurred = _goal_draw(goal, pieces, 1.0, rng)
+    assert len(blurred) == 200 and len(np.unique(blurred[:, 0])) == 2  # each piece decoded to its centroid
+    mixed = [len(np.unique(_goal_draw(goal, pieces, 0.5, rng)[:, 0])) for _ in range(20)]
+    assert {2, 101, 200} >= set(mixed) and len(set(mixed)) > 1  # pieces replaced one by one, at random
+    with pytest.raises(ValueError, match="needs the encoder"):
+        train_reset([_cut_demo(0, rng)[0]], [], ResetConfig(points=16, widths=[16], head=[16]), epochs=1, decoded_goals=0.5)

@@ -77,6 +77,30 @@ def test_knife_position_inverts_the_measured_cut_model():
     assert knife_x_for_plane(0.7, 0.0, 1.0, -2.0) == 0.7  # model off
 
 
+def test_cut_reset_target_is_plane_and_phase_and_its_inverse_finds_the_knife(skills):
+    cut, cfg = skills["cut"], CutConfig()
+    model = (cfg.grid_dx, cfg.plane_offset, cfg.plane_slope)
+    for knife in np.linspace(0.55, 0.85, 97):
+        plane, phase = cut.reset_target(knife)
+        assert plane == pytest.approx(dough_plane(knife, *model), abs=1e-12)
+        assert phase == pytest.approx(knife / cfg.grid_dx % 1.0, abs=1e-9)
+        if 0.03 <= phase <= 0.97:  # plane and phase name one knife position
+            assert cut.reset_tool_x((plane, phase)) == pytest.approx(knife, abs=cfg.grid_dx / 150)
+        back = cut.reset_tool_x((plane,))  # a plane alone: this knife or the other one that parts the dough there
+        assert dough_plane(back, *model) == pytest.approx(plane, abs=1e-9)
+        assert 0.03 < back / cfg.grid_dx % 1.0 < 0.97
+    # crs seed 1003: the right knife is 0.7021 (phase 0.93); 1.2 mm further is the next cell, where the
+    # dough parts 3.4 cm further right. Plane and phase regressed a little off keep the knife in its cell,
+    # and the phase picks between the two knives of one plane (1.8 cells apart)
+    assert cut.reset_target(0.7033)[0] - cut.reset_target(0.7021)[0] > 0.03
+    plane, phase = cut.reset_target(0.7021)
+    assert abs(cut.reset_tool_x((plane + 0.0012, phase + 0.05)) - 0.7021) < 0.002
+    low, high = 46.18 * cfg.grid_dx, 47.94 * cfg.grid_dx  # part the dough at ~0.733 both
+    assert cut.reset_target(low)[0] == pytest.approx(cut.reset_target(high)[0], abs=0.001)
+    assert abs(cut.reset_tool_x((cut.reset_target(high)[0], 0.85)) - high) < 0.002
+    assert abs(cut.reset_tool_x((cut.reset_target(high)[0], 0.3)) - low) < 0.002
+
+
 def test_cut_expert_aligns_descends_reenters_and_separates(skills):
     cut = skills["cut"]
     params = {"cut_x": 0.7, "shift": -0.07}

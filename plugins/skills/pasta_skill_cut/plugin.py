@@ -46,6 +46,9 @@ class CutConfig:
             ``stay_end_offset + stay_end_slope * phase`` (measured on the same cuts: 1.2 cm at phase 0
             to 5 cm at phase 0.9, std ~3-7 mm per phase bin). Neighbouring cells overlap, so some planes
             have two knife positions; the heuristic takes the one whose squeeze matches the goal's.
+        reset_plane_sigma, reset_phase_sigma: learned reset pose (``Skill.reset_tool_x``): how far a knife's
+            modelled plane (metres) and cell phase may be from the regressed ones, each in units of the
+            regressor's held-out error (plane 1.6 mm, phase 0.1 of a cell, rounded up).
     """
 
     max_steps: int = 130
@@ -67,6 +70,8 @@ class CutConfig:
     plane_slope: float = -2.269
     stay_end_offset: float = 0.012
     stay_end_slope: float = 0.043
+    reset_plane_sigma: float = 0.002
+    reset_phase_sigma: float = 0.1
 
 
 @hookimpl

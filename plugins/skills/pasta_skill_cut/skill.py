@@ -20,6 +20,7 @@ least ``min_travel``).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,6 +80,23 @@ def knife_x_for_plane(plane: float, dx: float, offset: float, slope: float) -> f
     if not cands:
         return float(plane)
     return max(cands, key=lambda c: min(c[1], 1.0 - c[1]))[0]
+
+
+def knife_x_for_cut(plane: float, phase: float, dx: float, offset: float, slope: float, plane_sigma: float,
+                    phase_sigma: float, min_margin: float = 0.03) -> float:
+    """The knife ``x`` whose modelled cut (:func:`dough_plane`) best matches both a ``plane`` and a cell
+    ``phase``: the minimum of ``((plane(x) - plane) / plane_sigma)^2 + ((phase(x) - phase) / phase_sigma)^2``
+    over knife positions within 3 cells, on a 1/200-cell grid, at least ``min_margin`` of a cell from a
+    cell boundary. Each phase has one knife position per plane, so a phase picks between the two
+    positions that part the dough at one plane, and a plane slightly off the predicted one is accepted
+    when its phase fits far better."""
+    if dx <= 0:
+        return float(plane)
+    xs = plane + dx * np.arange(-600, 601) / 200.0
+    ph = xs / dx - np.floor(xs / dx)
+    cost = ((xs + dx * (offset + slope * ph) - plane) / plane_sigma) ** 2 + ((ph - phase) / phase_sigma) ** 2
+    cost[(ph < min_margin) | (ph > 1.0 - min_margin)] = np.inf
+    return float(xs[int(np.argmin(cost))])
 
 
 def split_by_x_gap(points: np.ndarray, min_fraction: float = 0.05) -> float:
@@ -281,9 +299,11 @@ class CutSkill(Skill):
     """cut one dough piece in two with the knife (1 -> 2 entities, tool: knife)."""
 
     spec = SPEC
-    #: config fields only the heuristic controller reads (left out of task cache keys)
+    #: config fields only the heuristic controller and the learned reset pose read, never the expert
+    #: (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("max_steps", "slide_allowance", "min_travel", "fix_tolerance", "fix_far_side",
-                                         "grid_dx", "plane_offset", "plane_slope", "stay_end_offset", "stay_end_slope")
+                                         "grid_dx", "plane_offset", "plane_slope", "stay_end_offset", "stay_end_slope",
+                                         "reset_plane_sigma", "reset_phase_sigma")
     #: `pasta pipeline` settings (docs/learning.md, docs/policies.md): the feasibility also learns from near
     #: misses that move one of the two halves 3-25 cm (a cut leaves its halves side by side); the policy sees
     #: the execution step and the tool pose and learns from its reset pose on (the align phase, which the
@@ -309,6 +329,30 @@ class CutSkill(Skill):
         c = piece.mean(0)
         top = float(np.percentile(piece[:, 1], 99))
         return ToolPose((float(c[0]), top + KNIFE_TIP + self.config.clearance, float(c[2])), 0.0)
+
+    def reset_target(self, tool_x: float) -> tuple[float, ...]:
+        """``(plane, phase)``: where the dough parts when the knife cuts at ``tool_x`` (the measured cut
+        model, :func:`dough_plane`) and where ``tool_x`` lies in its grid cell. A learned reset pose
+        regresses these instead of the knife ``x``, which is two-valued for one plane and jumps by two
+        cells across a cell boundary (docs/policies.md, "The cut's reset pose and the grid cell"); the
+        goal shows the plane (the pieces' point fractions) and the phase (how far the cut squeezed the
+        part that stays, ``stay_end_*``)."""
+        cfg = self.config
+        if cfg.grid_dx <= 0:
+            return (float(tool_x), 0.0)
+        plane = dough_plane(float(tool_x), cfg.grid_dx, cfg.plane_offset, cfg.plane_slope)
+        return (plane, float(tool_x / cfg.grid_dx - np.floor(tool_x / cfg.grid_dx)))
+
+    def reset_tool_x(self, target: Sequence[float]) -> float:
+        """The knife ``x`` for a regressed ``(plane, phase)`` (:func:`knife_x_for_cut`); for a plane alone,
+        :func:`knife_x_for_plane`."""
+        cfg = self.config
+        if cfg.grid_dx <= 0:
+            return float(target[0])
+        model = (cfg.grid_dx, cfg.plane_offset, cfg.plane_slope)
+        if len(target) < 2:
+            return knife_x_for_plane(float(target[0]), *model)
+        return knife_x_for_cut(float(target[0]), float(target[1]), *model, cfg.reset_plane_sigma, cfg.reset_phase_sigma)
 
     def expert_approach_pose(self, piece: np.ndarray, params: dict[str, float], scene: np.ndarray | None = None) -> ToolPose:
         """The expert starts where every cut starts: above the piece centroid."""
