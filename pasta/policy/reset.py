@@ -188,16 +188,12 @@ def decoded_pieces(goal: np.ndarray, encoder: Any) -> list[tuple[np.ndarray, np.
     its reconstruction by ``encoder`` (encoded, decoded to the piece's own point count): the kind of
     piece a plan's decoded sub-goal hands a policy at execution."""
     from pasta.core.decompose import decompose_labels
+    from pasta.execute.executor import decode_entities
 
     labels = decompose_labels(goal)
     pieces = [np.asarray(goal[labels == k], np.float32) for k in range(int(labels.max()) + 1)]
-    out = []
-    for piece in pieces:
-        with torch.no_grad():
-            u = encoder.encode(piece[None])
-            rec = encoder.decode(u, len(piece))
-        out.append((piece, np.asarray(rec.detach().cpu().numpy() if hasattr(rec, "detach") else rec, np.float32)[0]))
-    return out
+    with torch.no_grad():
+        return [(piece, decode_entities(encoder, encoder.encode(piece[None]), len(piece))[0]) for piece in pieces]
 
 
 def _goal_draw(goal: np.ndarray, pieces: Sequence[tuple[np.ndarray, np.ndarray]] | None, p: float,
