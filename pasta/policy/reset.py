@@ -34,7 +34,7 @@ from torch import nn
 from pasta.core.errors import ConfigError
 
 __all__ = ["MODULE", "ResetConfig", "ResetPoseNet", "ResetTrainConfig", "align_offset", "load_reset", "reset_command",
-           "reset_inputs", "train_reset"]
+           "piece_shares", "reset_inputs", "train_reset"]
 
 #: checkpoint module (and file) name of a reset-pose regressor
 MODULE = "reset_pose"
@@ -49,7 +49,8 @@ class ResetConfig:
     ``target``: what the offset is of, ``"tool"`` (the tool ``x``; checkpoints without the key) or
     ``"skill"`` (the skill's ``reset_target`` of it, turned back by ``reset_tool_x``); ``outputs``: how
     many values the network regresses (``R``: the first an ``x`` offset in metres, the others unitless;
-    ``len(skill.reset_target(x))`` for ``"skill"``)."""
+    ``len(skill.reset_target(x))`` for ``"skill"``); ``piece_share``: every goal point also carries its
+    piece's share of the goal's points (DBSCAN pieces; the executor's goal masses make those exact)."""
 
     points: int = 512
     widths: list[int] = field(default_factory=lambda: [64, 128, 256])
@@ -59,6 +60,7 @@ class ResetConfig:
     draws: int = 1
     target: str = "tool"
     outputs: int = 1
+    piece_share: bool = False
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
@@ -75,13 +77,13 @@ def _mlp(sizes: Sequence[int], last_act: bool = True) -> nn.Sequential:
 
 
 class ResetPoseNet(nn.Module):
-    """``points (B, N, 4)`` (x, y, z, source: 0 dough / 1 goal) -> ``(B, R)``: the offset in metres, then
+    """``points (B, N, 4 or 5)`` (x, y, z, source: 0 dough / 1 goal[, piece share]) -> ``(B, R)``: the offset in metres, then
     ``R - 1`` unitless values (``R = cfg.outputs``)."""
 
     def __init__(self, cfg: ResetConfig | None = None) -> None:
         super().__init__()
         self.cfg = cfg or ResetConfig()
-        self.point_mlp = _mlp([4, *self.cfg.widths])
+        self.point_mlp = _mlp([4 + int(self.cfg.piece_share), *self.cfg.widths])
         self.head = _mlp([4 * self.cfg.widths[-1], *self.cfg.head, self.cfg.outputs], last_act=False)
         units = torch.ones(self.cfg.outputs)
         units[0] = self.cfg.scale
@@ -89,7 +91,7 @@ class ResetPoseNet(nn.Module):
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
         src = points[..., 3:4]
-        h = self.point_mlp(torch.cat([points[..., :3] / 0.05, src], -1))
+        h = self.point_mlp(torch.cat([points[..., :3] / 0.05, points[..., 3:]], -1))
         pooled = []
         for w in (1.0 - src, src):  # pool each source on its own
             n = w.sum(1).clamp_min(1.0)
@@ -98,17 +100,33 @@ class ResetPoseNet(nn.Module):
         return self.head(torch.cat(pooled, -1)) * self.units
 
 
-def reset_inputs(dough: np.ndarray, goal: np.ndarray, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``(2n, 4)`` network input (``n`` points of each, centred on the dough centroid in ``x, z``) and
-    the centroid ``(3,)``."""
+def piece_shares(goal: np.ndarray) -> np.ndarray:
+    """``(G,)``: for every point of ``goal (G, 3)`` its piece's share of the goal's points (DBSCAN pieces,
+    :func:`pasta.core.decompose.decompose_labels`). Point counts are masses for an observed cloud, and
+    the executor's goal masses make them so for a plan's sub-goals."""
+    from pasta.core.decompose import decompose_labels
+
+    labels = decompose_labels(goal)
+    return (np.bincount(labels)[labels] / len(goal)).astype(np.float32)
+
+
+def reset_inputs(dough: np.ndarray, goal: np.ndarray, n: int, rng: np.random.Generator,
+                 piece_share: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """``(2n, 4)`` network input (``n`` points of each, centred on the dough centroid in ``x, z``, and a
+    source channel), ``(2n, 5)`` with ``piece_share`` (the goal points' :func:`piece_shares`, 0 for the
+    dough), and the centroid ``(3,)``."""
     dough = np.asarray(dough, np.float32)
     goal = np.asarray(goal, np.float32)
     c = dough.mean(0)
     shift = np.array([c[0], 0.0, c[2]], np.float32)
     d = dough[rng.choice(len(dough), n, replace=len(dough) < n)] - shift
-    g = goal[rng.choice(len(goal), n, replace=len(goal) < n)] - shift
-    pts = np.concatenate([np.concatenate([d, np.zeros((n, 1), np.float32)], 1),
-                          np.concatenate([g, np.ones((n, 1), np.float32)], 1)], 0)
+    gi = rng.choice(len(goal), n, replace=len(goal) < n)
+    g = goal[gi] - shift
+    cols_d, cols_g = [np.zeros((n, 1), np.float32)], [np.ones((n, 1), np.float32)]
+    if piece_share:
+        cols_d.append(np.zeros((n, 1), np.float32))
+        cols_g.append(piece_shares(goal)[gi, None])
+    pts = np.concatenate([np.concatenate([d, *cols_d], 1), np.concatenate([g, *cols_g], 1)], 0)
     return pts, c
 
 
@@ -147,7 +165,9 @@ class ResetPose:
         """The regressed values ``(R,)`` (the first an offset from the piece centroid ``x``); the mean over
         ``cfg.draws`` subsamples (seeds ``seed``, ``seed + 1``, ...)."""
         draws = max(1, int(self.net.cfg.draws))
-        pts = [reset_inputs(piece, goal, self.net.cfg.points, np.random.default_rng(self.seed + i))[0] for i in range(draws)]
+        cfg = self.net.cfg
+        pts = [reset_inputs(piece, goal, cfg.points, np.random.default_rng(self.seed + i), cfg.piece_share)[0]
+               for i in range(draws)]
         return self.net(torch.as_tensor(np.stack(pts))).mean(0).numpy().astype(np.float64)
 
     def offset(self, piece: np.ndarray, goal: np.ndarray) -> float:
@@ -183,34 +203,45 @@ def _dataset(demos: Sequence[Any], skill: Any = None) -> list[tuple[np.ndarray, 
     return out
 
 
-def decoded_pieces(goal: np.ndarray, encoder: Any) -> list[tuple[np.ndarray, np.ndarray]]:
+def decoded_pieces(goal: np.ndarray, encoder: Any, *, noise: float = 0.0, draws: int = 1,
+                   rng: np.random.Generator | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """The pieces of ``goal (G, 3)`` (DBSCAN, :func:`pasta.core.decompose.decompose_labels`), each with
-    its reconstruction by ``encoder`` (encoded, decoded to the piece's own point count): the kind of
-    piece a plan's decoded sub-goal hands a policy at execution."""
+    ``draws`` reconstructions by ``encoder`` ``(draws, n, 3)`` (encoded, Gaussian ``noise`` on the shape
+    code ``z``, decoded to the piece's own point count ``n``): the kind of piece a plan's decoded sub-goal
+    hands a policy at execution, where the planner chose the shape code."""
     from pasta.core.decompose import decompose_labels
     from pasta.execute.executor import decode_entities
 
+    rng = rng or np.random.default_rng(0)
     labels = decompose_labels(goal)
     pieces = [np.asarray(goal[labels == k], np.float32) for k in range(int(labels.max()) + 1)]
-    with torch.no_grad():
-        return [(piece, decode_entities(encoder, encoder.encode(piece[None]), len(piece))[0]) for piece in pieces]
+    z_dim = int(getattr(encoder, "z_dim", 0))
+    out = []
+    for piece in pieces:
+        with torch.no_grad():
+            u = torch.as_tensor(encoder.encode(piece[None])).repeat(max(1, draws), 1)
+        if noise > 0 and z_dim:
+            u[:, :z_dim] += noise * torch.as_tensor(rng.standard_normal((len(u), z_dim)), dtype=u.dtype)
+        out.append((piece, np.stack(decode_entities(encoder, u, len(piece)))))
+    return out
 
 
 def _goal_draw(goal: np.ndarray, pieces: Sequence[tuple[np.ndarray, np.ndarray]] | None, p: float,
                rng: np.random.Generator) -> np.ndarray:
-    """``goal`` with each of its ``pieces`` replaced by its reconstruction with probability ``p``."""
+    """``goal`` with each of its ``pieces`` replaced by one of its reconstructions with probability ``p``."""
     if not pieces or p <= 0:
         return goal
-    return np.concatenate([rec if rng.random() < p else exact for exact, rec in pieces])
+    return np.concatenate([recs[rng.integers(len(recs))] if rng.random() < p else exact for exact, recs in pieces])
 
 
 def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: float,
-           decoded: Sequence[Any] | None = None, p_decoded: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
+           decoded: Sequence[Any] | None = None, p_decoded: float = 0.0,
+           piece_share: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
     xs, ys = [], []
     for i, (dough, goal, off, _) in enumerate(items):
         if decoded is not None:
             goal = _goal_draw(goal, decoded[i], p_decoded, rng)
-        pts, _ = reset_inputs(dough, goal, n, rng)
+        pts, _ = reset_inputs(dough, goal, n, rng, piece_share)
         if noise > 0:
             pts[:, :3] += rng.uniform(-noise, noise, pts[:, :3].shape).astype(np.float32)
         xs.append(pts)
@@ -221,7 +252,7 @@ def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: floa
 def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | None = None, *, epochs: int = 300,
                 batch_size: int = 32, lr: float = 1e-3, noise: float = 0.002, seed: int = 0,
                 log: bool = False, skill: Any = None, encoder: Any = None,
-                decoded_goals: float = 0.0) -> tuple[ResetPoseNet, dict[str, Any]]:
+                decoded_goals: float = 0.0, decoded_noise: float = 0.0) -> tuple[ResetPoseNet, dict[str, Any]]:
     """Fit the regressor on ``train`` demos (their align offsets, or with ``cfg.target == "skill"`` the
     offsets of ``skill.reset_target``), keep the epoch with the lowest mean absolute error on ``val``
     (``train`` itself when empty); returns the net and its metrics (held-out errors in the regressed
@@ -242,11 +273,12 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
         raise ValueError(f"the regressor has {cfg.outputs} outputs but the targets have {len(tr[0][2])} values")
     if decoded_goals > 0 and encoder is None:
         raise ValueError("decoded_goals needs the encoder that decodes the goal pieces")
-    decoded = [decoded_pieces(t[1], encoder) for t in tr] if decoded_goals > 0 else None
+    decoded = ([decoded_pieces(t[1], encoder, noise=decoded_noise, draws=4 if decoded_noise > 0 else 1, rng=rng)
+                for t in tr] if decoded_goals > 0 else None)
     net = ResetPoseNet(cfg)
     opt = torch.optim.Adam(net.parameters(), lr=lr)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, max(1, epochs))
-    vx, vy = _batch(va, cfg.points, np.random.default_rng(seed + 1), 0.0)
+    vx, vy = _batch(va, cfg.points, np.random.default_rng(seed + 1), 0.0, piece_share=cfg.piece_share)
     best, best_state, best_epoch = float("inf"), None, -1
     for epoch in range(epochs):
         net.train()
@@ -254,7 +286,7 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
         for i in range(0, len(order), batch_size):
             idx = order[i:i + batch_size]
             x, y = _batch([tr[j] for j in idx], cfg.points, rng, noise,
-                          None if decoded is None else [decoded[j] for j in idx], decoded_goals)
+                          None if decoded is None else [decoded[j] for j in idx], decoded_goals, cfg.piece_share)
             loss = nn.functional.smooth_l1_loss(net(x) / net.units, y / net.units, beta=0.05)
             opt.zero_grad()
             loss.backward()
@@ -306,6 +338,8 @@ class ResetTrainConfig:
             the cut's plane and phase; docs/policies.md, "The cut's reset pose and the grid cell").
         decoded_goals: probability that a goal piece of a training sample is replaced by its VAE
             reconstruction (``encoder_weights``; empty: the shipped VAE), as at execution.
+        decoded_noise: std of Gaussian noise on the shape code of those reconstructions (4 per piece).
+        piece_share: every goal point also carries its piece's share of the goal's points (an input).
         threads: torch CPU threads (0: leave as is).
         progress: print the held-out error every 20 epochs (stderr).
     """
@@ -321,6 +355,8 @@ class ResetTrainConfig:
     draws: int = 1
     target: str = "tool"
     decoded_goals: float = 0.0
+    decoded_noise: float = 0.0
+    piece_share: bool = False
     encoder_weights: str = ""
     threads: int = 1
     progress: bool = True
@@ -345,7 +381,8 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
     demos = load_demos(data, [skill])
     train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=cfg.seed)
     outputs = len(skill_obj.reset_target(0.5)) if cfg.target == "skill" else 1
-    net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws, target=cfg.target, outputs=outputs)
+    net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws, target=cfg.target, outputs=outputs,
+                          piece_share=cfg.piece_share)
     with torch_threads(cfg.threads):
         encoder = None
         if cfg.decoded_goals > 0:
@@ -355,7 +392,7 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
             encoder = PointVAEEncoder(PointVAEEncoderConfig(weights=cfg.encoder_weights))
         net, metrics = train_reset(train, val, net_cfg, epochs=cfg.epochs, batch_size=cfg.batch_size, lr=cfg.lr,
                                    noise=cfg.noise, seed=cfg.seed, log=cfg.progress, skill=skill_obj, encoder=encoder,
-                                   decoded_goals=cfg.decoded_goals)
+                                   decoded_goals=cfg.decoded_goals, decoded_noise=cfg.decoded_noise)
     out = Path(out)
     save_checkpoint(out, module=MODULE, name=NAME, tensors=net.state_dict(),
                     config={"skill": skill, "network": asdict(net_cfg)}, state=metrics)

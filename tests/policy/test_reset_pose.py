@@ -251,6 +251,7 @@ def test_decoded_goal_augmentation_replaces_whole_pieces():
     goal[goal[:, 0] < 0.5, 0] -= 0.08  # the left part moved 8 cm: two pieces
     pieces = decoded_pieces(goal, _FakeEncoder())
     assert [len(e) for e, _ in pieces] == [100, 100] and np.allclose(pieces[0][1], pieces[0][0].mean(0))
+    assert pieces[0][1].shape == (1, 100, 3)
     same = _goal_draw(goal, pieces, 0.0, rng)
     assert np.allclose(same, goal)
     blurred = _goal_draw(goal, pieces, 1.0, rng)
@@ -259,3 +260,41 @@ def test_decoded_goal_augmentation_replaces_whole_pieces():
     assert {2, 101, 200} >= set(mixed) and len(set(mixed)) > 1  # pieces replaced one by one, at random
     with pytest.raises(ValueError, match="needs the encoder"):
         train_reset([_cut_demo(0, rng)[0]], [], ResetConfig(points=16, widths=[16], head=[16]), epochs=1, decoded_goals=0.5)
+
+
+def test_piece_share_input_carries_each_goal_pieces_share_of_the_points():
+    from pasta.policy.reset import piece_shares, reset_inputs
+
+    left = np.c_[np.linspace(0.30, 0.38, 30), np.full(30, 0.02), np.full(30, 0.5)]
+    right = np.c_[np.linspace(0.50, 0.68, 70), np.full(70, 0.02), np.full(70, 0.5)]
+    goal = np.concatenate([left, right]).astype(np.float32)
+    assert np.allclose(piece_shares(goal), np.r_[np.full(30, 0.3), np.full(70, 0.7)])
+    dough = np.c_[np.linspace(0.4, 0.6, 50), np.full(50, 0.02), np.full(50, 0.5)].astype(np.float32)
+    pts, _ = reset_inputs(dough, goal, 40, np.random.default_rng(0), piece_share=True)
+    assert pts.shape == (80, 5) and np.all(pts[:40, 4] == 0)  # dough points carry no share
+    assert np.all(np.isclose(pts[40:, 4], 0.3) == (pts[40:, 0] < 0.0))  # the left piece, left of the dough centroid
+    cfg = ResetConfig(points=40, widths=[16], head=[16], piece_share=True)
+    assert ResetPoseNet(cfg)(torch.as_tensor(pts[None])).shape == (1, 1)
+
+
+def test_noisy_decodings_vary_the_shape_and_keep_the_point_count():
+    from pasta.policy.reset import decoded_pieces
+
+    class _Shape:
+        """``z`` (1 value) stretches the piece along x: decoded length 0.1 * (1 + z)."""
+
+        z_dim = 1
+
+        def encode(self, points):
+            p = torch.as_tensor(np.asarray(points, np.float32))
+            return torch.cat([torch.zeros(len(p), 1), p.mean(1)], 1)
+
+        def decode(self, u, n):
+            x = torch.linspace(-0.05, 0.05, n)[None, :, None] * (1 + u[:, None, :1])
+            return torch.cat([x, torch.zeros(len(u), n, 2)], -1) + u[:, None, 1:]
+
+    bar = np.c_[np.linspace(0.4, 0.5, 60), np.zeros(60), np.zeros(60)].astype(np.float32)
+    (exact, recs), = decoded_pieces(bar, _Shape(), noise=0.5, draws=4, rng=np.random.default_rng(0))
+    assert recs.shape == (4, 60, 3)
+    lengths = np.ptp(recs[:, :, 0], axis=1)
+    assert len(np.unique(lengths.round(4))) == 4 and np.allclose(recs[:, :, 0].mean(1), exact[:, 0].mean(), atol=1e-6)

@@ -307,12 +307,14 @@ class CutSkill(Skill):
     #: `pasta pipeline` settings (docs/learning.md, docs/policies.md): the feasibility also learns from near
     #: misses that move one of the two halves 3-25 cm (a cut leaves its halves side by side); the policy sees
     #: the execution step and the tool pose and learns from its reset pose on (the align phase, which the
-    #: learned reset pose replaces, dropped from the demos); a learned reset pose (stage reset); the
+    #: learned reset pose replaces, dropped from the demos); a learned reset pose (stage reset: the plane
+    #: and the knife's cell phase, goal pieces' point shares as an input, half the goal pieces decoded
+    #: from noisy shape codes; docs/policies.md, "The cut's reset pose and the grid cell"); the
     #: stopping-rule grid (select)
     training_defaults = {
         "feasibility": {"stride": 3, "shift_per_positive": 5, "shift_entities": "one", "shift_max": 0.25},
         "policy": {"step_feature": True, "pose_feature": True, "start_at_reset": True},
-        "reset": {},
+        "reset": {"target": "skill", "piece_share": True, "decoded_goals": 0.5, "decoded_noise": 0.5, "epochs": 90},
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},
     }
 
