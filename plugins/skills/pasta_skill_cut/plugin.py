@@ -47,8 +47,8 @@ class CutConfig:
             to 5 cm at phase 0.9, std ~3-7 mm per phase bin). Neighbouring cells overlap, so some planes
             have two knife positions; the heuristic takes the one whose squeeze matches the goal's.
         reset_plane_sigma, reset_phase_sigma: learned reset pose (``Skill.reset_tool_x``): how far a knife's
-            modelled plane (metres) and cell phase may be from the regressed ones, each in units of the
-            regressor's held-out error (plane 1.6 mm, phase 0.1 of a cell, rounded up).
+            modelled plane (metres) and cell phase may be from the regressed ones; set before any validation
+            run near the regressor's held-out errors (plane 1.6 mm; phase 0.05 of a cell, doubled).
     """
 
     max_steps: int = 130

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -49,10 +50,15 @@ class CutPlan:
     plane: float | None = None  # heuristic: where the dough should part (cut_x is where the knife goes)
 
 
+def cell_phase(x: Any, dx: float) -> Any:
+    """Where ``x`` (a number or an array) lies in its simulator grid cell of width ``dx``: 0 .. 1."""
+    return x / dx - np.floor(x / dx)
+
+
 def dough_plane(knife_x: float, dx: float, offset: float, slope: float) -> float:
     """Where the dough parts when the knife cuts at ``knife_x`` (measured, see :class:`CutConfig`):
     ``knife_x + dx * (offset + slope * phase)``, ``phase`` the knife's position within its grid cell."""
-    phase = knife_x / dx - np.floor(knife_x / dx)
+    phase = cell_phase(knife_x, dx)
     return float(knife_x + dx * (offset + slope * phase))
 
 
@@ -93,7 +99,7 @@ def knife_x_for_cut(plane: float, phase: float, dx: float, offset: float, slope:
     if dx <= 0:
         return float(plane)
     xs = plane + dx * np.arange(-600, 601) / 200.0
-    ph = xs / dx - np.floor(xs / dx)
+    ph = cell_phase(xs, dx)
     cost = ((xs + dx * (offset + slope * ph) - plane) / plane_sigma) ** 2 + ((ph - phase) / phase_sigma) ** 2
     cost[(ph < min_margin) | (ph > 1.0 - min_margin)] = np.inf
     return float(xs[int(np.argmin(cost))])
@@ -343,7 +349,7 @@ class CutSkill(Skill):
         if cfg.grid_dx <= 0:
             return (float(tool_x), 0.0)
         plane = dough_plane(float(tool_x), cfg.grid_dx, cfg.plane_offset, cfg.plane_slope)
-        return (plane, float(tool_x / cfg.grid_dx - np.floor(tool_x / cfg.grid_dx)))
+        return (plane, float(cell_phase(float(tool_x), cfg.grid_dx)))
 
     def reset_tool_x(self, target: Sequence[float]) -> float:
         """The knife ``x`` for a regressed ``(plane, phase)`` (:func:`knife_x_for_cut`); for a plane alone,
