@@ -79,6 +79,11 @@ class ExecuteConfig:
             goal, docs/policies.md), ``"all"`` or ``"off"``. It ends a step once the attended piece,
             having come at least halfway to the step's goal (Chamfer), moves away from it again by more
             than ``regress_rise`` of its best distance for 3 env steps.
+        regress_near: a watched step whose attended piece starts within this Chamfer distance of the
+            step's goal is at its goal already and is stopped as soon as it moves away (a learned roll of
+            a piece the plan rolled once before spreads it on; 0 disables). 0.001: on the crs_twice validation
+            configs such second rolls started 0.0002-0.0009 from their goal and first rolls 0.0009-0.0033
+            (docs/policies.md, "The roll that rolls a rolled piece").
         unchanged_threshold: an observed entity within this Chamfer distance of a goal entity already is
             that goal piece: the planner never attends it and matches it to that piece in the set cost
             (:func:`pasta.core.matching.unchanged_pairs`, ``PlanningProblem.fixed``; 0 disables).
@@ -100,6 +105,7 @@ class ExecuteConfig:
     reorder: bool = True
     regress_stop: str = "learned"
     regress_rise: float = 0.5
+    regress_near: float = 0.001
     unchanged_threshold: float = 5e-4
     emd_points: int = 500
     emd_seed: int = 0
@@ -116,6 +122,8 @@ class ExecuteConfig:
             raise ConfigError(f"execute.regress_stop must be 'learned', 'all' or 'off', got {self.regress_stop!r}")
         if not self.regress_rise > 0:
             raise ConfigError(f"execute.regress_rise must be a number > 0, got {self.regress_rise!r}")
+        if not self.regress_near >= 0:  # also NaN
+            raise ConfigError(f"execute.regress_near must be a number >= 0, got {self.regress_near!r}")
         if not self.unchanged_threshold >= 0:  # also NaN
             raise ConfigError(f"execute.unchanged_threshold must be >= 0, got {self.unchanged_threshold}")
 
@@ -124,7 +132,7 @@ class ExecuteConfig:
         from pasta.tasks.executor import RegressionStop
 
         if self.regress_stop == "all" or self.regress_stop == self.controller:
-            return RegressionStop(rise=float(self.regress_rise))
+            return RegressionStop(rise=float(self.regress_rise), near=float(self.regress_near))
         return None
 
 

@@ -82,7 +82,8 @@ class RegressionStop:
     ``points`` fixed points of each); once the step has made real progress (its best distance is below
     ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for ``patience``
     steps in a row, the step ends as done. A step that has not made progress yet (a knife still
-    descending) is never stopped.
+    descending) is never stopped, unless its piece started within ``near`` (Chamfer) of the goal: that
+    piece is at its goal already (a plan that rolls a rolled piece once more), so moving away counts.
 
     Use: ``start(piece (K, 3), goal (G, 3))`` before the first action, then ``update(piece) -> stop``
     after every env step. One instance serves one step at a time (``start`` resets it).
@@ -92,10 +93,13 @@ class RegressionStop:
     patience: int = 3
     progress: float = 0.5
     points: int = 256
+    near: float = 0.0
 
     def __post_init__(self) -> None:
-        if not (self.rise > 0 and self.patience >= 1 and 0 < self.progress <= 1 and self.points >= 1):
-            raise InputError(f"RegressionStop needs rise > 0, patience >= 1, progress in (0, 1], points >= 1; got {self}")
+        ok = self.rise > 0 and self.patience >= 1 and 0 < self.progress <= 1 and self.points >= 1 and self.near >= 0
+        if not ok:
+            raise InputError("RegressionStop needs rise > 0, patience >= 1, progress in (0, 1], points >= 1, "
+                             f"near >= 0; got {self}")
         self._goal: np.ndarray | None = None
 
     def _subset(self, cloud: np.ndarray) -> np.ndarray:
@@ -117,7 +121,7 @@ class RegressionStop:
             raise InputError("RegressionStop.update before start")
         d = self._distance(piece)
         self.best = min(self.best, d)
-        progressed = self.best < self.progress * self.initial
+        progressed = self.best < self.progress * self.initial or self.initial < self.near
         self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
         return self.above >= self.patience
 

@@ -70,7 +70,7 @@ def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
     skill.attach_policy(LearnedPolicy(net, "nudge", done_threshold=1.0))  # never done: runs to max_steps
     res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill}, encoder=box_encoder,
                        goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64,
-                                                         retries=0))
+                                                         retries=0, regress_near=0.0))  # the piece starts at this goal
     assert res.steps[0].env_steps == 3 and not res.steps[0].done and sim.step_count == 4
 
 

@@ -71,6 +71,22 @@ def test_never_stops_a_step_that_has_made_no_progress():
     assert not run.stopped and run.steps == _SKILL.max_steps
 
 
+def test_a_piece_that_starts_at_its_goal_is_stopped_once_it_moves_away():
+    sim = _PushSim()
+    goal = _goal(sim, 0.0)  # already there: a plan that runs a step on a piece a step before finished
+    run = run_skill(sim, _SKILL, _AlwaysLeft(), np.arange(300), goal, idle_steps=0, stop=RegressionStop(near=1e-3))
+    assert run.stopped and run.done and run.steps <= 5, run.steps
+    # without `near` the step never made progress, so it runs to its limit
+    sim2 = _PushSim()
+    run2 = run_skill(sim2, _SKILL, _AlwaysLeft(), np.arange(300), _goal(sim2, 0.0), idle_steps=0, stop=RegressionStop())
+    assert not run2.stopped and run2.steps == _SKILL.max_steps
+    # a piece that starts farther than `near` from its goal is still left alone until it has made progress
+    sim3 = _PushSim()
+    run3 = run_skill(sim3, _SKILL, _AlwaysLeft(), np.arange(300), _goal(sim3, +0.15), idle_steps=0,
+                     stop=RegressionStop(near=1e-3))
+    assert not run3.stopped and run3.steps == _SKILL.max_steps
+
+
 def test_without_a_goal_the_stop_is_ignored():
     run = run_skill(_PushSim(), _SKILL, _AlwaysLeft(), np.arange(300), None, idle_steps=0, max_steps=5,
                     stop=RegressionStop())
@@ -104,3 +120,8 @@ def test_execute_config_chooses_which_controllers_are_watched():
         ExecuteConfig(regress_stop="sometimes")
     with pytest.raises(ConfigError, match="regress_rise"):
         ExecuteConfig(regress_rise=-1.0)
+    assert ExecuteConfig(controller="learned", regress_near=0.002).regression_stop().near == 0.002
+    with pytest.raises(ConfigError, match="regress_near"):
+        ExecuteConfig(regress_near=float("nan"))
+    with pytest.raises(InputError, match="near >= 0"):
+        RegressionStop(near=-1.0)
