@@ -83,7 +83,7 @@ class ExecuteConfig:
             step's goal is at its goal already and is stopped as soon as it moves away (a learned roll of
             a piece the plan rolled once before spreads it on; 0 disables). 0.001: on the crs_twice validation
             configs such second rolls started 0.0002-0.0009 from their goal and first rolls 0.0009-0.0033
-            (docs/policies.md, "The roll that rolls a rolled piece").
+            (docs/policies.md, "crs_twice with learned policies").
         unchanged_threshold: an observed entity within this Chamfer distance of a goal entity already is
             that goal piece: the planner never attends it and matches it to that piece in the set cost
             (:func:`pasta.core.matching.unchanged_pairs`, ``PlanningProblem.fixed``; 0 disables).
