@@ -76,6 +76,7 @@ def last_window_by_attention(problem: Any, config: Any, start: torch.Tensor,
 
 def main(argv: list[str]) -> int:
     from pasta.config.overrides import script_args
+    from pasta.core.planner import PlanningProblem
     from pasta.execute.pipeline import perceive, plan_from_clouds
     from pasta.execute.session import build_session
 
@@ -103,7 +104,7 @@ def main(argv: list[str]) -> int:
         plan = plan_from_clouds(inst.init_points, inst.goal, planner=session.planner, skills=session.skills,
                                 encoder=session.encoder, cost=session.cost, horizon=session.horizon, seed=seed,
                                 skeleton=skeleton)
-        pieces, _ = perceive(inst.goal, session.encoder, seed=seed)
+        pieces, u_goal = perceive(inst.goal, session.encoder, min_points=session.exe.min_points, seed=seed)
         centres = np.array([p.mean(0) for p in pieces], np.float64)
         off = [i for i, c in enumerate(centres) if np.any(c < low - 1e-9) or np.any(c > high + 1e-9)]
         rep = repeated_steps(plan, skills)
@@ -115,7 +116,9 @@ def main(argv: list[str]) -> int:
                 f"outside the box {off or '-'}")
         if rep and rep[-1] == len(plan.steps) - 1 and args["windows"] not in ("0", "false"):
             start = plan.steps[-2].state
-            problem = _problem(session, inst, seed)
+            _, u_obs = perceive(inst.init_points, session.encoder, min_points=session.exe.min_points, seed=seed)
+            problem = PlanningProblem(obs=u_obs, goal=u_goal, skills=list(session.skills), encoder=session.encoder,
+                                      cost=session.cost, horizon=session.horizon, seed=seed)
             best = last_window_by_attention(problem, session.planner.cfg, torch.as_tensor(start),
                                             plan.steps[-1].skill)
             line += "; last window per entity (score, feasibility, cost): " + ", ".join(
@@ -125,16 +128,6 @@ def main(argv: list[str]) -> int:
           f"a piece outside the encoder's centroid box {np.round(low, 3).tolist()} .. {np.round(high, 3).tolist()}; "
           f"{both} both")
     return 0
-
-
-def _problem(session: Any, inst: Any, seed: int) -> Any:
-    from pasta.core.planner import PlanningProblem
-    from pasta.execute.pipeline import perceive
-
-    _, u_obs = perceive(inst.init_points, session.encoder, seed=seed)
-    _, u_goal = perceive(inst.goal, session.encoder, seed=seed)
-    return PlanningProblem(obs=u_obs, goal=u_goal, skills=list(session.skills), encoder=session.encoder,
-                           cost=session.cost, horizon=session.horizon, seed=seed)
 
 
 if __name__ == "__main__":
