@@ -8,11 +8,14 @@ simulation) and reports, per seed:
 - the goal pieces' centroids and which lie outside the encoder's centroid box (the range of the entities
   it was trained on, where the planner keeps its sub-goals);
 - for a repeated last step, the best plan score the last receding-horizon window reaches for each entity it
-  could attend instead, with that candidate's feasibility and set cost (``--windows``; receding planner only).
+  could attend instead, with that candidate's feasibility and set cost (``windows=1``; receding planner only);
+- with ``truth=1``, how each skill's feasibility network rates the task's own ground-truth steps (the expert
+  chain that made the goal: observed pieces before and after each step, encoded as at planning).
 
 ::
 
-    python benchmarks/repeated_steps.py task=crs_twice seeds=2000-2019 [models=DIR] [windows=1] [planner.KEY=VALUE ...]
+    python benchmarks/repeated_steps.py task=crs_twice seeds=2000-2019 [models=DIR] [windows=1] [truth=1] \\
+        [planner.KEY=VALUE ...]
 
 Prints a line per seed and the counts (docs/planning.md, "crs_twice plans that roll one piece twice").
 """
@@ -74,6 +77,25 @@ def last_window_by_attention(problem: Any, config: Any, start: torch.Tensor,
     return best
 
 
+def truth_feasibility(inst: Any, skills: dict[str, Any], encoder: Any, min_points: int,
+                      seed: int) -> list[tuple[str, float]]:
+    """``(skill, feasibility)`` of every step of the instance's ground-truth chain: the observed pieces the expert
+    consumed (in the state before the step) and produced (each output separately), encoded as at planning."""
+    from pasta.execute.pipeline import perceive
+
+    obs_index = inst.obs_index
+    out = []
+    for h, step in enumerate(inst.steps):
+        before = (inst.steps[h - 1].state if h else inst.init.x)[obs_index]
+        after = step.state[obs_index]
+        _, u_in = perceive(before[step.inputs], encoder, min_points=min_points, seed=seed)
+        u_out = torch.cat([perceive(after[o], encoder, min_points=min_points, seed=seed)[1][:1] for o in step.outputs])
+        with torch.no_grad():
+            f = skills[step.skill].log_feasibility(u_in[None], u_out[None]).exp()
+        out.append((step.skill, float(f)))
+    return out
+
+
 def main(argv: list[str]) -> int:
     from pasta.config.overrides import script_args
     from pasta.core.planner import PlanningProblem
@@ -81,7 +103,7 @@ def main(argv: list[str]) -> int:
     from pasta.execute.session import build_session
 
     given = script_args(argv, __doc__, "python benchmarks/repeated_steps.py")
-    args = {"task": "crs_twice", "seeds": "2000-2019", "models": "", "windows": "0"}
+    args = {"task": "crs_twice", "seeds": "2000-2019", "models": "", "windows": "0", "truth": "0"}
     overrides = []
     for key, value in given.items():
         if key in args:
@@ -123,6 +145,9 @@ def main(argv: list[str]) -> int:
                                             plan.steps[-1].skill)
             line += "; last window per entity (score, feasibility, cost): " + ", ".join(
                 f"{e}: ({s:.3f}, {f:.2f}, {c:.4f})" for e, (s, f, c) in sorted(best.items()))
+        if args["truth"] not in ("0", "false"):
+            rated = truth_feasibility(inst, skills, session.encoder, session.exe.min_points, seed)
+            line += "; ground-truth steps rated " + ", ".join(f"{name} {f:.3f}" for name, f in rated)
         print(line, flush=True)
     print(f"{len(seeds)} seeds: {repeats} plans repeat a step on the piece it just produced; {outside} goals have "
           f"a piece outside the encoder's centroid box {np.round(low, 3).tolist()} .. {np.round(high, 3).tolist()}; "
