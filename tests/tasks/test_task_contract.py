@@ -86,9 +86,9 @@ def test_check_task_names_what_is_wrong():
     skills = PLUGINS.skills
 
     class Unregistered(ToyTask):
-        skeleton = ("move", "pinch")
+        skeleton = ("move", "not_a_registered_skill")  # not "pinch": the example plugin registers that one
 
-    with pytest.raises(PluginConformanceError, match=r"uses unregistered skills \['pinch'\]; registered: \[.*'move'"):
+    with pytest.raises(PluginConformanceError, match=r"uses unregistered skills \['not_a_registered_skill'\]; registered: \[.*'move'"):
         check_task(Unregistered(), skills=skills)
 
     class NoMove(ToyTask):
