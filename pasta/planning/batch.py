@@ -13,6 +13,7 @@ skill plus one (or two) cost-model calls, whatever the number of samples, sequen
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -191,6 +192,13 @@ def _slot_boxes(sequence: Sequence[str], skills: Mapping[str, Skill], encoder: E
     return torch.tensor(low, dtype=torch.float64), torch.tensor(high, dtype=torch.float64)
 
 
+def sequence_stream(seed: int, sequence: Sequence[str]) -> torch.Generator:
+    """A generator for ``sequence``'s draws alone: seeded by ``seed`` and the skill names (CRC-32, stable
+    across processes and Python versions, unlike ``hash``)."""
+    key = zlib.crc32("\x1f".join(sequence).encode(), zlib.crc32(str(int(seed)).encode()))
+    return torch.Generator().manual_seed(key)
+
+
 def sample_candidates(
     start: torch.Tensor,
     goal: torch.Tensor,
@@ -201,6 +209,7 @@ def sample_candidates(
     generator: torch.Generator,
     fixed: Sequence[tuple[int, int]] = (),
     attention: str = "sample",
+    sequence_seed: int | None = None,
 ) -> CandidateBatch:
     """Draw ``num_samples`` candidates per sequence: random attention per sample and step, prior latents.
 
@@ -219,6 +228,9 @@ def sample_candidates(
             sequence (:func:`pasta.planning.attention.attention_structures`, fixed entities never attended),
             ``num_samples`` latent draws for each, so a sequence has ``num_samples x structures`` candidates
             (the paper's "no sampling" ablation: one initialisation per structure, ``num_samples = 1``).
+        sequence_seed: when given, each sequence draws from its own stream seeded by ``sequence_seed`` and
+            the sequence's skill names (:func:`sequence_stream`) instead of ``generator``, so a sequence's
+            candidates are the same whichever other sequences are drawn with it.
     """
     if attention not in ATTENTION_MODES:
         raise InputError(f"attention must be one of {ATTENTION_MODES}, got {attention!r}")
@@ -246,6 +258,7 @@ def sample_candidates(
             k += m - n
         k = start.shape[0]
         count = num_samples
+        draw = generator if sequence_seed is None else sequence_stream(sequence_seed, seq)
         if attention == "enumerate":
             chosen = _enumerate_structures(sig, k, [i for i, _ in fixed])
             count = num_samples * len(chosen[0])
@@ -256,7 +269,7 @@ def sample_candidates(
             if attention == "enumerate":  # the chosen entities sort first, then the rest (fixed ones among them)
                 key = 1.0 + torch.zeros(count, k).scatter_(1, chosen[h], -1.0)
             else:
-                key = torch.rand(count, k, generator=generator)
+                key = torch.rand(count, k, generator=draw)
             if n_fixed:  # fixed entities sort last: never among the n consumed
                 key = key + 2.0 * torch.zeros(count, k).scatter_(1, pos, 1.0)
             perm = key.argsort(dim=1)
@@ -266,7 +279,7 @@ def sample_candidates(
                 pos = m + torch.searchsorted(kept[-1], pos)
             k += m - n
         total = sum(m for _, m in sig)
-        lat = encoder.sample_prior(count * total, generator).to(start.dtype).reshape(count, total, dim)
+        lat = encoder.sample_prior(count * total, draw).to(start.dtype).reshape(count, total, dim)
         if own_boxes:  # centroids drawn in the encoder's box, mapped into each slot's box (same where they agree)
             low, high = (b.to(start.dtype).expand(count, -1, -1) for b in _slot_boxes(seq, skills, encoder))
             e_low, e_high = (torch.tensor(b, dtype=start.dtype) for b in (encoder.t_low, encoder.t_high))

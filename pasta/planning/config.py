@@ -8,6 +8,8 @@ from pasta.core import PluginConfig
 
 #: how a search draws attention (LatentPlannerConfig.attention)
 ATTENTION_MODES = ("sample", "enumerate")
+#: where a search's candidates come from (LatentPlannerConfig.draws)
+DRAW_MODES = ("shared", "sequence")
 
 
 @dataclass
@@ -26,6 +28,13 @@ class LatentPlannerConfig(PluginConfig):
     # (every attention structure of a sequence, num_samples latent draws each). With num_samples=1 and
     # refine_sequences=0, "enumerate" is the paper's "no sampling" ablation: one initialisation per structure.
     attention: str = "sample"
+    # Where the candidates' random draws come from: "shared" (one stream for the whole search, sequence
+    # after sequence) or "sequence" (each sequence its own stream, seeded by the problem's seed, the skill
+    # names and the search round). With "sequence" a sequence's result does not depend on which other
+    # sequences are searched beside it (halving_scope "sequence"), so two planners that both reach a
+    # sequence give it the same candidates: their scores differ only by the sequences they reach, not
+    # by the luck of the draw (docs/planning.md, "Common draws"). CEM's redraws stay on the shared stream.
+    draws: str = "shared"
     iterations: int = 100  # optimiser iterations (paper 100-300); the last one only evaluates
     # Adam learning rate on the sub-goal latents. The paper used 0.01; with our VAE latents and 100 iterations
     # 0.05 found the right crs skeleton on 4/4 test configs against 0/4 at 0.01 (docs/planning.md).
@@ -74,6 +83,7 @@ class LatentPlannerConfig(PluginConfig):
         check_choice(self.objective, "planner.objective", ("log", "product"))
         check_choice(self.matching, "planner.matching", ("auto", "frozen", "recompute"))
         check_choice(self.attention, "planner.attention", ATTENTION_MODES)
+        check_choice(self.draws, "planner.draws", DRAW_MODES)
 
 
 @dataclass

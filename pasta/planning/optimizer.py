@@ -116,10 +116,14 @@ def search(
         clearance = Clearance.from_problem(problem.encoder, start, problem.goal, skills=problem.skills)
     timings = {"sample": 0.0, "optimise": 0.0}
 
+    rounds = iter(range(2))  # the search, then the refinement: fresh candidates each
+
     def optimise(seqs: Sequence[Sequence[str]]) -> SearchResult:
         t_a = time.perf_counter()
+        # "sequence" draws: one stream per (problem seed, round, sequence), see LatentPlannerConfig.draws
+        sequence_seed = 2 * int(problem.seed) + next(rounds) if config.draws == "sequence" else None
         batch = sample_candidates(start, problem.goal, seqs, problem.skill_map, problem.encoder, config.num_samples,
-                                  generator, fixed=fixed, attention=config.attention)
+                                  generator, fixed=fixed, attention=config.attention, sequence_seed=sequence_seed)
         drawn = batch.size  # before halving shrinks the batch
         t_b = time.perf_counter()
         opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance)
