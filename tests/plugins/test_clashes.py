@@ -27,7 +27,7 @@ class BeamConfig(PluginConfig):
 
 
 class BeamPlanner(Planner):
-    name = "beam"
+    name = "toy_beam"
 
     def plan(self, problem):
         raise NotImplementedError
@@ -55,7 +55,7 @@ def pasta_register_tools(register):
 PLANNER = '''
 @hookimpl
 def pasta_register_planners(register):
-    register(name="beam", factory="{module}:BeamPlanner", config=BeamConfig)
+    register(name="toy_beam", factory="{module}:BeamPlanner", config=BeamConfig)
 '''
 
 
@@ -82,50 +82,50 @@ def test_third_party_cannot_displace_a_builtin_skill(make_dist, fresh_plugins):
 
 def test_entry_point_names_are_per_distribution(make_dist, fresh_plugins):
     """A third-party entry point named ``cut`` that registers other names clashes with nothing."""
-    make_dist("pinch-pkg", "pinch_mod", source("pinch_mod", SKILL_ON, TOOL, cls="Pinch", name="pinch", tool="claw"),
+    make_dist("pinch-pkg", "pinch_mod", source("pinch_mod", SKILL_ON, TOOL, cls="Pinch", name="squash", tool="claw"),
               entry="cut")
     with warnings.catch_warnings():
         warnings.simplefilter("error", PluginLoadWarning)
         plugins = fresh_plugins()
     assert not plugins.failures
-    assert plugins.skills.info("pinch").plugin == "cut" and plugins.skills.info("pinch").distribution == "pinch-pkg"
+    assert plugins.skills.info("squash").plugin == "cut" and plugins.skills.info("squash").distribution == "pinch-pkg"
     assert plugins.skills.info("cut").distribution == BUILTIN_DISTRIBUTION
 
 
 def test_two_third_party_planners_with_one_name_load_neither(make_dist, fresh_plugins):
     make_dist("beam-one", "beam_one", source("beam_one", PLANNER), entry="beam")
     make_dist("beam-two", "beam_two", source("beam_two", PLANNER), entry="beam")
-    with pytest.warns(PluginLoadWarning, match="planner 'beam' is also registered by plugin 'beam' from beam-"):
+    with pytest.warns(PluginLoadWarning, match="planner 'toy_beam' is also registered by plugin 'beam' from beam-"):
         plugins = fresh_plugins()
-    assert "beam" not in plugins.planners
-    failures = refusals(plugins, "planner", "beam")
+    assert "toy_beam" not in plugins.planners
+    failures = refusals(plugins, "planner", "toy_beam")
     assert sorted(f.distribution for f in failures) == ["beam-one", "beam-two"]
     one = next(f for f in failures if f.distribution == "beam-one")
     assert "beam-two 0.3" in one.error and "none of them is loaded" in one.error
 
 
 def test_tool_clash_between_third_parties_refuses_the_tool_and_its_skills(make_dist, fresh_plugins):
-    make_dist("grip-one", "grip_one", source("grip_one", TOOL, SKILL_ON, cls="Pinch", name="pinch", tool="claw"))
+    make_dist("grip-one", "grip_one", source("grip_one", TOOL, SKILL_ON, cls="Pinch", name="squash", tool="claw"))
     make_dist("grip-two", "grip_two", source("grip_two", TOOL, tool="claw"), entry="grip")
     with pytest.warns(PluginLoadWarning):
         plugins = fresh_plugins()
-    assert "claw" not in plugins.tools and "pinch" not in plugins.skills
+    assert "claw" not in plugins.tools and "squash" not in plugins.skills
     assert {f.distribution for f in refusals(plugins, "tool", "claw")} == {"grip-one", "grip-two"}
-    [skill] = refusals(plugins, "skill", "pinch")
+    [skill] = refusals(plugins, "skill", "squash")
     assert "drives tool 'claw', which no plugin registers; known tools:" in skill.error
 
 
 def test_skill_with_unregistered_tool_fails_at_load_and_plugins_exits_1(make_dist, fresh_plugins, capsys):
-    make_dist("pinch-pkg", "pinch_notool", source("pinch_notool", SKILL_ON, cls="Pinch", name="pinch", tool="claw"))
-    with pytest.warns(PluginLoadWarning, match="skill 'pinch' drives tool 'claw', which no plugin registers"):
+    make_dist("pinch-pkg", "pinch_notool", source("pinch_notool", SKILL_ON, cls="Pinch", name="squash", tool="claw"))
+    with pytest.warns(PluginLoadWarning, match="skill 'squash' drives tool 'claw', which no plugin registers"):
         plugins = fresh_plugins()
-    assert "pinch" not in plugins.skills
+    assert "squash" not in plugins.skills
     [failure] = plugins.failures
     known = ", ".join(sorted(plugins.tools.names())) or "(none registered)"
     assert f"known tools: {known}" in failure.error
     assert main(["plugins"]) == 1
     out = capsys.readouterr().out
-    assert "FAILED  skill 'pinch' of plugin 'pinch' from pinch-pkg: skill 'pinch' drives tool 'claw'" in out
+    assert "FAILED  skill 'squash' of plugin 'pinch' from pinch-pkg: skill 'squash' drives tool 'claw'" in out
     assert main(["plugins", "--json"]) == 1
 
 

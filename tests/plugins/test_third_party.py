@@ -17,7 +17,7 @@ import torch
 from pasta.core import Planner, PluginConfig, Skill, SkillSpec, ToolSpec
 from pasta.plugins import hookimpl
 
-SPEC = SkillSpec("pinch", n_in=2, n_out=1, tool="claw", description="squeeze two pieces into one")
+SPEC = SkillSpec("squash", n_in=2, n_out=1, tool="claw", description="squeeze two pieces into one")
 
 
 class PinchSkill(Skill):
@@ -34,7 +34,7 @@ class BeamConfig(PluginConfig):
 
 
 class BeamPlanner(Planner):
-    name = "beam"
+    name = "toy_beam"
 
     def plan(self, problem):
         raise NotImplementedError
@@ -52,7 +52,7 @@ def pasta_register_skills(register):
 
 @hookimpl
 def pasta_register_planners(register):
-    register(name="beam", factory="pinch_plugin:BeamPlanner", config=BeamConfig, summary="toy beam search")
+    register(name="toy_beam", factory="pinch_plugin:BeamPlanner", config=BeamConfig, summary="toy beam search")
 '''
 
 
@@ -63,28 +63,28 @@ def pinch_dist(make_dist):
 
 def test_third_party_skill_and_planner_appear_and_disappear(pinch_dist, monkeypatch, fresh_plugins, capsys):
     plugins = fresh_plugins()
-    info = plugins.skills.info("pinch")
+    info = plugins.skills.info("squash")
     assert (info.spec.n_in, info.spec.n_out, info.distribution, info.version) == (2, 1, "pinch-pkg", "0.3")
-    skill = plugins.skills.create("pinch")
+    skill = plugins.skills.create("squash")
     check_skill(skill)
-    planner = plugins.planners.create("beam")
-    assert planner.config.width == 4 and planner.config.name == "beam"
+    planner = plugins.planners.create("toy_beam")
+    assert planner.config.width == 4 and planner.config.name == "toy_beam"
     assert "cut" in plugins.skills  # built-ins still there
 
     assert main(["plugins"]) == 0
     out = capsys.readouterr().out
-    assert "pinch" in out and "2->1 (claw)" in out and "pinch-pkg" in out and "beam" in out
+    assert "squash" in out and "2->1 (claw)" in out and "pinch-pkg" in out and "toy_beam" in out
 
     monkeypatch.undo()
     sys.modules.pop("pinch_plugin", None)
     plugins = fresh_plugins()
-    assert "pinch" not in plugins.skills and "beam" not in plugins.planners
+    assert "squash" not in plugins.skills and "toy_beam" not in plugins.planners
 
 
 def test_third_party_plugin_listed_by_cli_subprocess(pinch_dist):
     env = {"PYTHONPATH": str(pinch_dist), "PATH": "/usr/bin:/bin"}
     out = subprocess.run([sys.executable, "-m", "pasta", "plugins", "--kind", "skill"], capture_output=True, text=True, env=env, check=True)
-    assert "pinch" in out.stdout and "pinch-pkg" in out.stdout
+    assert "squash" in out.stdout and "pinch-pkg" in out.stdout
 
 
 def test_broken_plugin_is_reported_and_others_load(make_dist, fresh_plugins):

@@ -78,8 +78,16 @@ def test_tool_table_limits():
 
 @pytest.fixture(scope="module")
 def toolsim(sim):
-    """A simulator with the registered tools plus a test gripper and board (same layout: no new kernels)."""
-    other = Simulator(SimConfig(n_particles=3000, max_particles=10000), tools=[*registered_tools(), GRIPPER, BOARD])
+    """A simulator with the built-in tools plus a test gripper and board (same layout: no new kernels).
+
+    Built-in only: with a third-party tool installed (the example pasta-pinch's pincer), all registered tools
+    plus these two would exceed the simulator's tool slots."""
+    from pasta.plugins import get_plugins
+    from pasta.plugins.registry import BUILTIN_DISTRIBUTION
+
+    reg = get_plugins().tools
+    builtin = [t for t in registered_tools() if reg.info(t.name).distribution == BUILTIN_DISTRIBUTION]
+    other = Simulator(SimConfig(n_particles=3000, max_particles=10000), tools=[*builtin, GRIPPER, BOARD])
     assert other._eng is sim._eng  # tools are field data: one compiled engine serves every tool set
     return other
 
