@@ -116,12 +116,11 @@ def search(
         clearance = Clearance.from_problem(problem.encoder, start, problem.goal, skills=problem.skills)
     timings = {"sample": 0.0, "optimise": 0.0}
 
-    rounds = iter(range(2))  # the search, then the refinement: fresh candidates each
-
-    def optimise(seqs: Sequence[Sequence[str]]) -> SearchResult:
+    def optimise(seqs: Sequence[Sequence[str]], refining: bool = False) -> SearchResult:
         t_a = time.perf_counter()
-        # "sequence" draws: one stream per (problem seed, round, sequence), see LatentPlannerConfig.draws
-        sequence_seed = 2 * int(problem.seed) + next(rounds) if config.draws == "sequence" else None
+        # "sequence" draws: one stream per (problem seed, round, sequence), see LatentPlannerConfig.draws; the
+        # refinement is round 1, so it draws fresh candidates
+        sequence_seed = 2 * int(problem.seed) + int(refining) if config.draws == "sequence" else None
         batch = sample_candidates(start, problem.goal, seqs, problem.skill_map, problem.encoder, config.num_samples,
                                   generator, fixed=fixed, attention=config.attention, sequence_seed=sequence_seed)
         drawn = batch.size  # before halving shrinks the batch
@@ -152,7 +151,7 @@ def _refine(result: SearchResult, sequences: Sequence[Sequence[str]], count: int
     ranked = sorted((i for i, b in enumerate(result.best) if b is not None), key=lambda i: -result.best[i][3])[:count]
     if not ranked:
         return result
-    again = optimise([sequences[i] for i in ranked])
+    again = optimise([sequences[i] for i in ranked], refining=True)
     best, per_sequence = list(result.best), [dict(r) for r in result.per_sequence]
     for j, i in enumerate(ranked):
         row, new = per_sequence[i], again.per_sequence[j]
