@@ -130,3 +130,16 @@ def test_pipeline_keeps_pieces_at_their_goal_out_of_a_real_plan():
     off = plan_from_clouds(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost, horizon=3,
                            seed=0, unchanged_threshold=0)
     assert "fixed" not in off.info
+
+
+def test_the_beams_local_search_never_attends_pieces_at_their_goal():
+    """planner.polish searches sequences the beam never built; those must keep the fixed entities out too."""
+    planner = configured(get_plugins().planners, "prefix_beam",
+                         {"iterations": 60, "num_samples": 64, "prefix_samples": 16, "prefix_iterations": 20,
+                          "final": 1, "polish": 3, "max_horizon": 3})
+    p = crowded_problem(4, seed=1)
+    plan = planner.plan(p)
+    assert plan.info["polish"]  # the local search ran
+    check_plan(plan, p, cost_weight=planner.config.cost_weight)
+    assert attended_origins(plan, len(p.obs)) == {0}
+    assert plan.info["fixed"] == [list(x) for x in p.fixed]

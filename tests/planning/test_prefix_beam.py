@@ -67,10 +67,10 @@ def test_same_seed_same_plan():
     assert a.to_json(timings=False) == b.to_json(timings=False)
 
 
-@pytest.mark.parametrize("key", ["width", "final", "window", "prefix_samples", "max_horizon"])
+@pytest.mark.parametrize("key", ["width", "final", "window", "prefix_samples", "max_horizon", "polish", "polish_top"])
 def test_bad_settings_name_the_key(key):
     with pytest.raises(ConfigError, match=f"planner.{key}"):
-        load_config(["planner=prefix_beam", f"planner.{key}={-1 if key == 'max_horizon' else 0}"])
+        load_config(["planner=prefix_beam", f"planner.{key}={-1 if key in ('max_horizon', 'polish') else 0}"])
 
 
 def test_search_reports_each_sequences_best_candidate():
@@ -130,3 +130,41 @@ def test_hybrid_finish_keeps_the_joint_skeleton_and_plans_it_receding():
     assert hybrid.info["finish"]["mode"] == "hybrid"
     assert [s["committed"] for s in hybrid.info["finish"]["stages"]] == list(hybrid.skills)
     assert all(s["windows"] == 1 for s in hybrid.info["finish"]["stages"])  # one skeleton: one window per step
+
+
+def test_neighbours_are_every_sequence_one_edit_away():
+    from pasta_planner_prefix_beam.planner import _neighbours
+
+    got = _neighbours(("cut", "push"), ["cut", "push", "roll"])
+    assert len(got) == len(set(got)) and ("cut", "push") not in got
+    assert ("push", "cut", "push") in got and ("cut", "push", "roll") in got  # insertions
+    assert ("cut",) in got and ("push",) in got  # deletions
+    assert ("cut", "roll") in got and ("roll", "push") in got  # substitutions
+    assert ("push", "cut") in got  # the swap
+    assert all(abs(len(n) - 2) <= 1 for n in got)
+    assert _neighbours(("push", "push"), ["push"]) == [("push", "push", "push"), ("push",)]  # no self-swap
+
+
+def test_polish_from_one_final_sequence_reaches_exhaustives_plan():
+    """With every searched sequence's neighbours searched (polish_top larger than the space), the local
+    search covers every complete sequence, so with sequence draws it picks exactly exhaustive's plan."""
+    problem = analytic_problem(horizon=3, seed=2)
+    over = {"num_samples": 16, "iterations": 20, "draws": "sequence", "max_horizon": 3}
+    reference = configured(get_plugins().planners, "exhaustive", over).plan(problem)
+    plan = _planner(**over, final=1, polish=10, polish_top=1000).plan(problem)
+    assert tuple(plan.skills) == tuple(reference.skills)
+    assert plan.score == pytest.approx(reference.score, abs=1e-5)
+    rounds = plan.info["polish"]
+    assert rounds and all(r["searched"] > 0 for r in rounds)
+    assert 1 + sum(r["searched"] for r in rounds) == reference.info["sequences"]  # each searched once
+    unpolished = _planner(**over, final=1).plan(problem)
+    assert "polish" not in unpolished.info
+
+
+def test_polish_stops_at_a_local_optimum():
+    problem = analytic_problem(horizon=3, seed=2)
+    plan = _planner(draws="sequence", max_horizon=3, final=1, polish=50).plan(problem)
+    rounds = plan.info["polish"]
+    assert len(rounds) < 50  # ended because the best two had no unsearched neighbour left
+    scores = [r["score"] for r in rounds]
+    assert scores == sorted(scores)  # the best found never gets worse

@@ -27,6 +27,10 @@ class PrefixBeamConfig(HalvingConfig):
     # as exhaustive's: 0: only sequences of the problem's horizon H; N > 0: every complete sequence of
     # 1..N steps is a candidate (ignored when the problem gives a skeleton)
     max_horizon: int = 0
+    # local search after the final search (joint finish, no given skeleton): up to `polish` rounds, each
+    # searching every valid sequence one edit away from the `polish_top` best found so far (0: off)
+    polish: int = 0
+    polish_top: int = 2
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -38,5 +42,7 @@ class PrefixBeamConfig(HalvingConfig):
         check_int(self.prefix_samples, "planner.prefix_samples", low=1)
         check_int(self.prefix_iterations, "planner.prefix_iterations", low=0)
         check_int(self.max_horizon, "planner.max_horizon", low=0)
+        check_int(self.polish, "planner.polish", low=0)
+        check_int(self.polish_top, "planner.polish_top", low=1)
         check_choice(self.finish, "planner.finish", ("joint", "receding", "hybrid"))
         check_int(self.finish_window, "planner.finish_window", low=1)

@@ -10,8 +10,9 @@ from dataclasses import dataclass
 
 import torch
 
-from pasta.core import CardinalityError, Plan, PlanningProblem, kept_indices
-from pasta.planning import LatentPlanner, receding_search, search
+from pasta.core import CardinalityError, Plan, PlanningProblem, check_skeleton, kept_indices
+from pasta.planning import LatentPlanner, SearchResult, receding_search, search
+from pasta.planning.batch import free_feasible
 from pasta_planner_prefix_beam.config import PrefixBeamConfig
 
 
@@ -41,7 +42,10 @@ class PrefixBeamPlanner(LatentPlanner):
     same :func:`search` and objective as ``exhaustive``), and the best wins; with ``finish=receding``
     they are searched a window of ``finish_window`` steps at a time instead (:func:`receding_search`,
     as ``receding_horizon`` does: better sub-goals for the first steps of long plans); ``finish=hybrid``
-    takes the skeleton the joint search chose and plans its sub-goals with :func:`receding_search`. A given
+    takes the skeleton the joint search chose and plans its sub-goals with :func:`receding_search`. With
+    ``polish = R > 0`` the joint search is followed by up to ``R`` rounds of local search over sequences one
+    edit away from the best found (:meth:`_polish`), which recovers full sequences whose prefixes the beam
+    dropped on noisy values. A given
     ``problem.skeleton`` skips the beam (and with ``finish=receding`` plans as ``receding_horizon``). At
     most ``width * C`` searches per depth (``C`` entity counts), each over at most ``K`` sequences of
     ``window`` steps, instead of ``K^H`` sequences.
@@ -61,15 +65,18 @@ class PrefixBeamPlanner(LatentPlanner):
         else:
             sequences, stages, prefix_timings = self._beam(problem, gen)
             timings["beam"] = prefix_timings
-        results, receding = [], None
+        results, receding, polish = [], None, []
         if cfg.finish != "receding":  # jointly, as exhaustive optimises each sequence
-            results.append(search(problem, sequences, cfg, gen, method=self.method))
+            if int(cfg.polish) > 0 and problem.skeleton is None:
+                results += self._polish(problem, sequences, gen, polish)
+            else:
+                results.append(search(problem, sequences, cfg, gen, method=self.method))
         if cfg.finish != "joint":  # a window at a time from the observed set: "receding" over the kept
             # sequences, "hybrid" over the one the joint search chose (its skeleton, receding sub-goals)
-            chosen = [results[0].skeleton] if results else sequences
+            chosen = [results[-1].skeleton] if results else sequences
             receding = receding_search(problem, chosen, cfg, gen, window=int(cfg.finish_window), method=self.method)
             results += receding.results
-        result = receding if receding is not None else results[0]
+        result = receding if receding is not None else results[-1]
         for key in ("sample", "optimise"):
             timings[key] = sum(r.timings[key] for r in results)
         timings["enumerate"] = time.perf_counter() - t0 - sum(timings.values())
@@ -81,7 +88,73 @@ class PrefixBeamPlanner(LatentPlanner):
                         "prefix_searches": sum(s["searches"] for s in stages),
                         "prefixes": sum(s["expanded"] for s in stages),
                         "prefix_evaluations": sum(s["evaluations"] for s in stages), "stages": stages}
+        if polish:
+            info["polish"] = polish
         return self.package(problem, result.skeleton, result.attention, result.subgoals, timings=timings, info=info)
+
+    def _polish(self, problem: PlanningProblem, sequences: list[tuple[str, ...]], gen: torch.Generator,
+                rounds: list[dict]) -> list[SearchResult]:
+        """Local search around the beam's best complete sequences; returns the searches, the deciding one last.
+
+        The beam ranks prefixes by values that differ by less than their sampling noise, so the best full
+        sequence can be one edit away from every kept one (a push inserted before the cut, a second
+        roll). Each round searches, with the final settings and no refinement, every sequence one edit
+        away (insert, delete or substitute one skill, or swap two neighbours) from the ``polish_top`` best
+        searched so far that can still turn the observed count into the goal's and was not searched yet;
+        it stops when there is none (the best are a local optimum) or after ``polish`` rounds. The best
+        ``refine_sequences + 1`` are then searched once more with the final settings (their refinement
+        included), so the winner is chosen as :func:`search` would choose it among all searched sequences.
+        ``rounds`` receives one ``{"searched", "best", "score"}`` entry per round.
+        """
+        cfg = self.cfg
+        plain = dataclasses.replace(cfg, refine_sequences=0)
+        results = [search(problem, sequences, plain, gen, method=self.method)]
+        scores: dict[tuple[str, ...], float] = {}
+
+        def record(result: SearchResult) -> None:
+            for row, best in zip(result.per_sequence, result.best):
+                if best is not None:
+                    scores[tuple(row["skills"])] = float(best[3])
+
+        def ranked() -> list[tuple[str, ...]]:
+            return sorted(scores, key=lambda s: -scores[s])  # stable: ties keep the order searched
+
+        record(results[0])
+        seen = set(map(tuple, sequences))
+        complete, names, fixed = self._completes(problem), [sk.spec.name for sk in problem.skills], results[0].fixed
+
+        def valid(skills: tuple[str, ...]) -> bool:  # as the searches treat them: no consuming an entity at its goal
+            return complete(skills) and (not fixed or free_feasible(skills, problem.skill_map, len(problem.obs), len(fixed)))
+
+        for _ in range(int(cfg.polish)):
+            fresh = list(dict.fromkeys(n for s in ranked()[: int(cfg.polish_top)] for n in _neighbours(s, names)
+                                       if n not in seen and valid(n)))
+            if not fresh:
+                break
+            seen.update(fresh)
+            results.append(search(problem, fresh, plain, gen, method=self.method))
+            record(results[-1])
+            best = ranked()[0]
+            rounds.append({"searched": len(fresh), "best": list(best), "score": scores[best]})
+        results.append(search(problem, ranked()[: int(cfg.refine_sequences) + 1], cfg, gen, method=self.method))
+        return results
+
+    def _completes(self, problem: PlanningProblem):
+        """A test: does a skill sequence turn the observed entities into the goal's count (within the horizon)?"""
+        exact = int(self.cfg.max_horizon) <= 0
+        horizon = int(problem.horizon) if exact else int(self.cfg.max_horizon)
+        specs = [s.spec for s in problem.skills]
+
+        def valid(skills: tuple[str, ...]) -> bool:
+            if not skills or len(skills) > horizon or (exact and len(skills) != horizon):
+                return False
+            try:
+                check_skeleton(skills, specs, len(problem.obs), len(problem.goal))
+            except CardinalityError:
+                return False
+            return True
+
+        return valid
 
     def _beam(self, problem: PlanningProblem, gen: torch.Generator) -> tuple[list[tuple[str, ...]], list[dict], float]:
         cfg = self.cfg
@@ -162,3 +235,17 @@ class PrefixBeamPlanner(LatentPlanner):
                 break
         best = sorted(complete, key=lambda s: -complete[s])[: int(cfg.final)]
         return best, stages, time.perf_counter() - t0
+
+
+def _neighbours(skills: tuple[str, ...], names) -> list[tuple[str, ...]]:
+    """Skill sequences one edit from ``skills``: one skill inserted, deleted or replaced, or two neighbours swapped."""
+    out = []
+    for i in range(len(skills) + 1):
+        out += [skills[:i] + (n,) + skills[i:] for n in names]
+    for i in range(len(skills)):
+        out.append(skills[:i] + skills[i + 1:])
+        out += [skills[:i] + (n,) + skills[i + 1:] for n in names if n != skills[i]]
+    for i in range(len(skills) - 1):
+        if skills[i] != skills[i + 1]:
+            out.append(skills[:i] + (skills[i + 1], skills[i]) + skills[i + 2:])
+    return list(dict.fromkeys(out))
