@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 
 from pasta.core.decompose import decompose_labels
-from pasta.core.errors import ConfigError, InputError
+from pasta.core.errors import CardinalityError, ConfigError, InputError
 from pasta.core.metrics import chamfer, emd, normalized_improvement
 from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.skill import Controller, Skill
@@ -79,6 +79,8 @@ class ExecuteConfig:
             goal, docs/policies.md), ``"all"`` or ``"off"``. It ends a step once the attended piece,
             having come at least halfway to the step's goal (Chamfer), moves away from it again by more
             than ``regress_rise`` of its best distance for 3 env steps.
+        regress_progress: the watch starts once the step's best distance is below this fraction of its
+            starting one (default 0.5, "halfway"; 1: as soon as it comes any closer).
         regress_near: a watched step whose attended piece starts within this Chamfer distance of the
             step's goal is at its goal already and is stopped as soon as it moves away (a learned roll of
             a piece the plan rolled once before spreads it on; 0 disables). 0.001: on the crs_twice validation
@@ -105,6 +107,7 @@ class ExecuteConfig:
     reorder: bool = True
     regress_stop: str = "learned"
     regress_rise: float = 0.5
+    regress_progress: float = 0.5
     regress_near: float = 0.001
     unchanged_threshold: float = 5e-4
     emd_points: int = 500
@@ -122,6 +125,8 @@ class ExecuteConfig:
             raise ConfigError(f"execute.regress_stop must be 'learned', 'all' or 'off', got {self.regress_stop!r}")
         if not self.regress_rise > 0:
             raise ConfigError(f"execute.regress_rise must be a number > 0, got {self.regress_rise!r}")
+        if not 0 < self.regress_progress <= 1:  # also NaN
+            raise ConfigError(f"execute.regress_progress must be a number in (0, 1], got {self.regress_progress!r}")
         if not self.regress_near >= 0:  # also NaN
             raise ConfigError(f"execute.regress_near must be a number >= 0, got {self.regress_near!r}")
         if not self.unchanged_threshold >= 0:  # also NaN
@@ -132,7 +137,8 @@ class ExecuteConfig:
         from pasta.tasks.executor import RegressionStop
 
         if self.regress_stop == "all" or self.regress_stop == self.controller:
-            return RegressionStop(rise=float(self.regress_rise), near=float(self.regress_near))
+            return RegressionStop(rise=float(self.regress_rise), progress=float(self.regress_progress),
+                                  near=float(self.regress_near))
         return None
 
 
@@ -172,6 +178,8 @@ class ExecutionResult:
     final_dough: np.ndarray
     plans: list[Plan] = field(default_factory=list)
     diverged: str | None = None
+    #: closed loop: re-plans that found no plan for the observed pieces (the plan before them ran on)
+    replan_errors: list[str] = field(default_factory=list)
 
 
 def decode_entities(encoder: Any, latents: Sequence[Sequence[float]], num_points: int) -> list[np.ndarray]:
@@ -408,6 +416,7 @@ def execute_plan(
 
     goal_labels = entity_labels(goal) if cfg.goal_pieces else None  # entity label of every goal point
     infos: list[StepInfo] = []
+    replan_errors: list[str] = []
     diverged = None
     executed: set[int] = set()  # plan steps of ``current`` already run
 
@@ -495,15 +504,22 @@ def execute_plan(
             break
         executed.add(h_plan)
         if cfg.closed_loop and h + 1 < horizon:
-            current = replan(sim.observe().dough, horizon - h - 1)
-            executed = set()
+            try:
+                fresh = replan(sim.observe().dough, horizon - h - 1)
+            except CardinalityError as exc:
+                # the observed pieces no longer fit the rest of the given skeleton (two pieces touch, or a
+                # cut left one): no re-plan exists, so the rest of the current plan runs open loop
+                replan_errors.append(f"after step {h}: {exc}")
+                continue
+            current, executed = fresh, set()
             plans.append(current)
             if log:
                 log.plan(current)
     final = infos[-1] if infos else None
     final_dough = obs.dough if diverged else sim.observe().dough
     emd_t = final.emd if final else emd0
-    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, plans, diverged)
+    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, plans, diverged,
+                             replan_errors)
     if log:
         log.finish(result)
     return result

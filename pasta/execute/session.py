@@ -49,6 +49,8 @@ class EpisodeOutcome:
         if self.result is not None:
             out["steps"] = [s.to_dict() for s in self.result.steps]
             out["diverged"] = self.result.diverged
+            if self.result.replan_errors:
+                out["replan_errors"] = list(self.result.replan_errors)
         return {**out, **self.info}
 
 

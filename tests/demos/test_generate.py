@@ -35,6 +35,18 @@ def test_wide_push_scene_covers_the_right_of_the_workspace():
     assert skill_config("push", "wide").target_x_max == 0.7 and skill_config("push").target_x_max == 0.32
 
 
+def test_roll_pieces_scene_spans_the_pushed_pieces_of_the_crs_tasks():
+    roll = get_plugins().skills.create("roll")
+    rng = np.random.default_rng(0)
+    boxes = [scene_boxes(roll, rng, 0.0, "pieces")[0] for _ in range(200)]
+    depth = np.array([s[2] for _, s in boxes])
+    z = np.array([c[2] for c, _ in boxes])
+    assert depth.max() > 0.12 and depth.min() >= 0.07  # the default scene's pieces are at most 0.08 deep
+    assert np.all(z - depth / 2 >= 0.2 - 1e-9) and np.all(z + depth / 2 <= 0.8 + 1e-9)
+    assert z.min() < 0.3 and z.max() > 0.7  # beyond the default scene's z 0.3-0.7
+    assert "pieces" in variants(type(roll))
+
+
 def test_scene_variants_are_checked(tmp_path):
     cut = get_plugins().skills.create("cut")
     assert variants(type(cut)) == ["default"] and variants(get_plugins().skills.load("push")) == ["default", "wide"]

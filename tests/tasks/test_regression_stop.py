@@ -109,6 +109,17 @@ def test_stop_counts_consecutive_steps_above_the_rise():
         RegressionStop(rise=0.0)
 
 
+def test_progress_sets_how_close_a_step_must_come_before_it_is_watched():
+    goal = np.zeros((10, 3), np.float32)
+    piece = lambda d: goal + np.float32([d, 0, 0])  # Chamfer distance 2 d^2
+    path = [0.9, 0.8, 1.0, 1.0, 1.0]  # at best 0.64 of the starting distance, then back to it
+    halfway, closer = RegressionStop(patience=3, progress=0.5), RegressionStop(patience=3, progress=1.0)
+    halfway.start(piece(1.0), goal)
+    closer.start(piece(1.0), goal)
+    assert not any(halfway.update(piece(d)) for d in path)  # never came halfway: never watched
+    assert [closer.update(piece(d)) for d in path] == [False, False, False, False, True]
+
+
 def test_execute_config_chooses_which_controllers_are_watched():
     assert ExecuteConfig(controller="learned").regression_stop() is not None
     assert ExecuteConfig(controller="heuristic").regression_stop() is None
@@ -123,5 +134,10 @@ def test_execute_config_chooses_which_controllers_are_watched():
     assert ExecuteConfig(controller="learned", regress_near=0.002).regression_stop().near == 0.002
     with pytest.raises(ConfigError, match="regress_near"):
         ExecuteConfig(regress_near=float("nan"))
+    assert ExecuteConfig(controller="learned").regression_stop().progress == 0.5
+    assert ExecuteConfig(controller="learned", regress_progress=1.0).regression_stop().progress == 1.0
+    for bad in (0.0, 1.5, float("nan")):
+        with pytest.raises(ConfigError, match="regress_progress"):
+            ExecuteConfig(regress_progress=bad)
     with pytest.raises(InputError, match="near >= 0"):
         RegressionStop(near=-1.0)

@@ -123,8 +123,10 @@ class PrefixBeamPlanner(LatentPlanner):
         seen = set(map(tuple, sequences))
         complete, names, fixed = self._completes(problem), [sk.spec.name for sk in problem.skills], results[0].fixed
 
-        def valid(skills: tuple[str, ...]) -> bool:  # as the searches treat them: no consuming an entity at its goal
-            return complete(skills) and (not fixed or free_feasible(skills, problem.skill_map, len(problem.obs), len(fixed)))
+        def valid(skills: tuple[str, ...]) -> bool:  # as the searches treat them: entities at their goal stay
+            if not complete(skills):
+                return False
+            return not fixed or free_feasible(skills, problem.skill_map, len(problem.obs), len(fixed))
 
         for _ in range(int(cfg.polish)):
             fresh = list(dict.fromkeys(n for s in ranked()[: int(cfg.polish_top)] for n in _neighbours(s, names)

@@ -146,7 +146,10 @@ class RollSkill(Skill):
     #: ``board``: a dough cube on the raised board of the lift package (LiftSpread's second step); without
     #: these the roll's feasibility network only ever saw pieces resting on the floor
     demo_variants = {"board": DemoVariant(config={}, pipeline_demos=100,
-                                          description="a dough cube (side 0.055-0.07) on the lift package's raised board")}
+                                          description="a dough cube (side 0.055-0.07) on the lift package's raised board"),
+                     "pieces": DemoVariant(config={}, pipeline_demos=0,
+                                           description="pieces as cutting and pushing leave them: 0.09-0.135 long, "
+                                                       "0.07-0.15 deep, anywhere in z 0.2-0.8")}
     training_defaults = {
         "feasibility": {"stride": 4, "epochs": 20, "shift_per_positive": 5},
         "policy": {"step_feature": True, "pose_feature": True},
@@ -209,6 +212,10 @@ class RollSkill(Skill):
             return [((float(rng.uniform(0.25, 0.33)), BOARD_TOP + side / 2, float(rng.uniform(0.42, 0.58))), (side,) * 3)]
         from pasta.tasks.library import SPREAD_X, small_box
 
+        if variant == "pieces":  # crs_twice rolls pieces 0.08-0.15 deep (pushed sideways) at z 0.28-0.74
+            size = (float(rng.uniform(0.09, 0.135)), float(rng.uniform(0.07, 0.08)), float(rng.uniform(0.07, 0.15)))
+            z = float(rng.uniform(0.2 + size[2] / 2, 0.8 - size[2] / 2))
+            return [((float(rng.uniform(*SPREAD_X)), floor_y + size[1] / 2, z), size)]
         return [small_box(rng, floor_y, SPREAD_X, (0.3, 0.7))]
 
     def demo_tools(self, variant: str = "default") -> dict[str, ToolPose]:
