@@ -44,8 +44,8 @@ class ZeroCost:
     pass
 
 
-@pytest.mark.sim
-def test_run_episode_closed_loop_replans_after_each_step(nudge, box_encoder):
+def closed_loop_episode(planner, nudge, box_encoder):
+    """Two planned nudges of a small dough towards a goal 3 cm to the left, re-planned after the first."""
     from pasta.execute import ExecuteConfig
     from pasta.execute.pipeline import run_episode
     from pasta.sim import SimConfig, Simulator, crs_dough
@@ -53,10 +53,15 @@ def test_run_episode_closed_loop_replans_after_each_step(nudge, box_encoder):
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=5)
     sim = Simulator(cfg)
     obs = sim.reset(crs_dough(cfg.n_particles, rng=5, floor_y=sim.floor_y, length=0.2))
+    return run_episode(sim, obs.dough - np.array([0.03, 0, 0], np.float32), planner=planner, skills=[nudge],
+                       encoder=box_encoder, cost=ZeroCost(), horizon=2, seed=0,
+                       cfg=ExecuteConfig(controller="heuristic", idle_steps=1, decode_points=100, closed_loop=True))
+
+
+@pytest.mark.sim
+def test_run_episode_closed_loop_replans_after_each_step(nudge, box_encoder):
     planner = StubPlanner()
-    ep = run_episode(sim, obs.dough - np.array([0.03, 0, 0], np.float32), planner=planner, skills=[nudge],
-                     encoder=box_encoder, cost=ZeroCost(), horizon=2, seed=0,
-                     cfg=ExecuteConfig(controller="heuristic", idle_steps=1, decode_points=100, closed_loop=True))
+    ep = closed_loop_episode(planner, nudge, box_encoder)
     assert planner.calls == [(1, 2), (1, 1)]  # planned once, re-planned once for the last step
     assert [s.skill for s in ep.result.steps] == ["nudge", "nudge"] and len(ep.result.plans) == 2
     assert ep.result.normalized_improvement > 0
@@ -76,17 +81,8 @@ class CountChangesPlanner(StubPlanner):
 
 @pytest.mark.sim
 def test_closed_loop_runs_the_plan_on_when_a_replan_finds_no_sequence(nudge, box_encoder):
-    from pasta.execute import ExecuteConfig
-    from pasta.execute.pipeline import run_episode
-    from pasta.sim import SimConfig, Simulator, crs_dough
-
-    cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=5)
-    sim = Simulator(cfg)
-    obs = sim.reset(crs_dough(cfg.n_particles, rng=5, floor_y=sim.floor_y, length=0.2))
     planner = CountChangesPlanner()
-    ep = run_episode(sim, obs.dough - np.array([0.03, 0, 0], np.float32), planner=planner, skills=[nudge],
-                     encoder=box_encoder, cost=ZeroCost(), horizon=2, seed=0,
-                     cfg=ExecuteConfig(controller="heuristic", idle_steps=1, decode_points=100, closed_loop=True))
+    ep = closed_loop_episode(planner, nudge, box_encoder)
     assert planner.calls == [(1, 2), (1, 1)]  # the re-plan was asked and failed
     assert [s.skill for s in ep.result.steps] == ["nudge", "nudge"]  # the first plan's second step still ran
     assert len(ep.result.plans) == 1 and len(ep.result.replan_errors) == 1

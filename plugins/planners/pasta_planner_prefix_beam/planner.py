@@ -120,6 +120,8 @@ class PrefixBeamPlanner(LatentPlanner):
             return sorted(scores, key=lambda s: -scores[s])  # stable: ties keep the order searched
 
         record(results[0])
+        if not scores:  # no sequence kept a sample: nothing to search around
+            return results
         seen = set(map(tuple, sequences))
         complete, names, fixed = self._completes(problem), [sk.spec.name for sk in problem.skills], results[0].fixed
 
