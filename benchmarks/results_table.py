@@ -83,6 +83,23 @@ def planner_changes(summary: dict) -> str:
     return changed_keys(settings, default, skip)
 
 
+#: execute keys with labels of their own (the controller, "regression stop off", the raw method's corrections)
+OWN_LABEL_EXECUTE_KEYS = ("controller", "regress_stop", "goal_mass", "goal_anchor")
+
+
+def execute_changes(summary: dict) -> str:
+    """``"skip_threshold=0.001"`` for a run whose execution settings (``execute.<key>=``) differ from today's
+    defaults, beside the keys labelled otherwise; runs that recorded no settings give ``""``."""
+    settings = summary.get("execute_settings") or {}
+    if not settings:
+        return ""
+    from dataclasses import asdict
+
+    from pasta.execute import ExecuteConfig
+
+    return changed_keys(settings, asdict(ExecuteConfig()), set(OWN_LABEL_EXECUTE_KEYS))
+
+
 def ablation_labels(summary: dict) -> str:
     """The paper's ablations and the raw method, from what a summary recorded: feasibility networks trained
     without hard negatives, one initialisation per attention structure, the goal-cloud corrections off."""
@@ -136,6 +153,9 @@ def main(argv: list[str]) -> int:
             name += f", {tuned}"  # planner.<key>= other than the planner's defaults (e.g. final=24)
         if s.get("controller") == "learned" and (s.get("execute_settings") or {}).get("regress_stop") == "off":
             name += ", regression stop off"  # execute.regress_stop=off: the learned policies' own stop only
+        executed = execute_changes(s)
+        if executed:
+            name += f", {executed}"  # execute.<key>= other than the defaults (e.g. skip_threshold=0.001)
         name += ablation_labels(s)
         settings = s.get("planner_settings") or {}
         if s["method"] != "oracle" and "clearance_weight" not in settings:

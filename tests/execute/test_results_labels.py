@@ -48,3 +48,11 @@ def test_planner_settings_other_than_the_planners_defaults_are_named():
     assert changes({"planner": "exhaustive", "planner_settings": ablation}) == ""
     assert changes({"planner": "exhaustive"}) == ""  # runs that recorded no settings
     assert changes({"planner": "no_such_planner", "planner_settings": {"name": "no_such_planner", "x": 1}}) == ""
+
+
+def test_execution_settings_other_than_the_defaults_are_named():
+    changes = results_table.execute_changes
+    assert changes(summary()) == ""  # the goal corrections have their own label
+    assert changes({"execute_settings": {"controller": "learned", "skip_threshold": 0.001}}) == "skip_threshold=0.001"
+    assert changes({"execute_settings": {"regress_stop": "off", "goal_mass": False}}) == ""  # labelled elsewhere
+    assert changes({"method": "pasta"}) == ""  # runs that recorded no settings
