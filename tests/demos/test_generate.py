@@ -23,10 +23,14 @@ def test_builtin_skills_make_demonstrations_and_base_skill_does_not():
         Bare().expert_approach_pose(np.zeros((4, 3)), {})
 
 
+def sampled_boxes(skill: str, variant: str, n: int = 200) -> list:
+    """``(centre, size)`` of the first box of ``n`` scenes of ``skill``'s ``variant`` (one seeded stream)."""
+    sk, rng = get_plugins().skills.create(skill), np.random.default_rng(0)
+    return [scene_boxes(sk, rng, 0.0, variant)[0] for _ in range(n)]
+
+
 def test_wide_push_scene_covers_the_right_of_the_workspace():
-    push = get_plugins().skills.create("push")
-    rng = np.random.default_rng(0)
-    boxes = [scene_boxes(push, rng, 0.0, "wide")[0] for _ in range(200)]
+    boxes = sampled_boxes("push", "wide")
     xs = np.array([c[0] for c, _ in boxes])
     lengths = np.array([s[0] for _, s in boxes])
     assert xs.max() > 0.75 and lengths.max() > 0.2  # default push pieces start at x <= 0.7, length <= 0.12
@@ -36,15 +40,13 @@ def test_wide_push_scene_covers_the_right_of_the_workspace():
 
 
 def test_roll_pieces_scene_spans_the_pushed_pieces_of_the_crs_tasks():
-    roll = get_plugins().skills.create("roll")
-    rng = np.random.default_rng(0)
-    boxes = [scene_boxes(roll, rng, 0.0, "pieces")[0] for _ in range(200)]
+    boxes = sampled_boxes("roll", "pieces")
     depth = np.array([s[2] for _, s in boxes])
     z = np.array([c[2] for c, _ in boxes])
     assert depth.max() > 0.12 and depth.min() >= 0.07  # the default scene's pieces are at most 0.08 deep
     assert np.all(z - depth / 2 >= 0.2 - 1e-9) and np.all(z + depth / 2 <= 0.8 + 1e-9)
     assert z.min() < 0.3 and z.max() > 0.7  # beyond the default scene's z 0.3-0.7
-    assert "pieces" in variants(type(roll))
+    assert "pieces" in variants(get_plugins().skills.load("roll"))
 
 
 def test_scene_variants_are_checked(tmp_path):

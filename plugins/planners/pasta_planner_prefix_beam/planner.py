@@ -143,10 +143,15 @@ class PrefixBeamPlanner(LatentPlanner):
         results.append(search(problem, ranked()[: int(cfg.refine_sequences) + 1], cfg, gen, method=self.method))
         return results
 
+    def _lengths(self, problem: PlanningProblem) -> tuple[bool, int]:
+        """``(exact, horizon)``: only sequences of the problem's horizon (``max_horizon`` 0), or any length up to
+        ``max_horizon``."""
+        exact = int(self.cfg.max_horizon) <= 0
+        return exact, int(problem.horizon) if exact else int(self.cfg.max_horizon)
+
     def _completes(self, problem: PlanningProblem):
         """A test: does a skill sequence turn the observed entities into the goal's count (within the horizon)?"""
-        exact = int(self.cfg.max_horizon) <= 0
-        horizon = int(problem.horizon) if exact else int(self.cfg.max_horizon)
+        exact, horizon = self._lengths(problem)
         specs = [s.spec for s in problem.skills]
 
         def valid(skills: tuple[str, ...]) -> bool:
@@ -165,8 +170,7 @@ class PrefixBeamPlanner(LatentPlanner):
         t0 = time.perf_counter()
         specs = [s.spec for s in problem.skills]
         k_goal, floor = len(problem.goal), float(cfg.feasibility_floor)
-        exact = int(cfg.max_horizon) <= 0
-        horizon = int(problem.horizon) if exact else int(cfg.max_horizon)
+        exact, horizon = self._lengths(problem)
 
         @functools.lru_cache(maxsize=None)
         def reaches(k: int, steps: int) -> bool:

@@ -204,7 +204,8 @@ class RollSkill(Skill):
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
         """``default``: a small piece in the spreading area (x in 0.22-0.32) on the floor; ``board``: a cube
-        resting on the board's top (:meth:`demo_tools`), where LiftSpread rolls."""
+        resting on the board's top (:meth:`demo_tools`), where LiftSpread rolls; ``pieces``: a piece shaped as
+        cutting and pushing leave them (up to 0.15 deep), anywhere in z 0.2-0.8."""
         if variant == "board":
             from pasta_skill_lift.tool import BOARD_TOP
 
