@@ -44,6 +44,7 @@ units and defaults (sized for a 2-core CPU; the settings the shipped models were
 per-skill ones come from each skill plugin's training_defaults and demo_variants):
   demos/<skill>          pasta demos skill=<skill> num=<num_demos> workers=<workers> out=<data>
   demos/push-wide        pasta demos skill=push num=<num_demos + 150> scene=wide ...
+  demos/cut-long         pasta demos skill=cut num=<num_demos + 150> scene=long ... (read by reset/cut only)
   vae                    epochs=11 stride=5 threads=1                       -> OUT/vae
   feasibility/<skill>    threads=1; cut stride=3 (epochs 30) shift_per_positive=5 shift_entities=one
                          shift_max=0.25; push and roll stride=4 epochs=20   -> OUT/feasibility/<skill>
@@ -51,7 +52,8 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
                          cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true;
                          lift: also goal_feature=true
-  reset/cut              python -m pasta.policy.reset epochs=45 start_step=0 points=1000 threads=1
+  reset/cut              python -m pasta.policy.reset epochs=90 start_step=0 points=1000 threads=1 target=skill
+                         piece_share=true x_share=true decoded_goals=0.5 decoded_noise=0.5
                                                                 -> OUT/policy/cut/reset.* (+ reset_metrics.json)
   select/<skill>         python -m pasta.policy.select n=20 seed=2000 write=1 threads=1 (validation
                          configs; the rule goes into OUT/policy/<skill>/model.json, the per-config

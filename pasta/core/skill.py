@@ -101,11 +101,17 @@ class DemoVariant:
         pipeline_demos: demonstrations ``pasta pipeline`` adds in this variant after the default ones
             (unit ``demos/<skill>-<name>``, same folder, the following indices; 0: the pipeline makes none).
         description: one line for listings and errors.
+        stages: the training stages that learn from these demonstrations (``vae``, ``feasibility``,
+            ``cost``, ``policy``, ``reset``); empty (the default): all of them. Recorded in each
+            demonstration's ``params["stages"]``; the readers of the other stages leave it out (e.g. demos
+            that teach the learned reset pose a wider range without changing the policy or the planner's
+            networks).
     """
 
     config: Mapping[str, Any] = field(default_factory=dict)
     pipeline_demos: int = 0
     description: str = ""
+    stages: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -43,9 +43,12 @@ import numpy as np
 from pasta.core.errors import ConfigError
 from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
 from pasta.distributed import BackendConfig, BackendError
-from pasta.demos.scene import check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles, variant_config
+from pasta.demos.scene import (DEFAULT, check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles,
+                               variant_config)
 
 FORMAT = "pasta-demos/1"
+#: the training stages that read demonstrations (:attr:`pasta.core.DemoVariant.stages` names some of them)
+TRAINING_STAGES = ("vae", "feasibility", "cost", "policy", "reset")
 
 
 @dataclass
@@ -173,6 +176,7 @@ class DemoWriter:
 
         self.cfg = cfg
         self.skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
+        self.variant_record = variant_record(type(self.skill), cfg.scene)
         self.sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
                                        max_particles=max(10000, cfg.n_particles)))
 
@@ -195,7 +199,8 @@ class DemoWriter:
                         idle_steps=cfg.idle_steps, park=False, record=True)
         arrays = run.trajectory.arrays(action_dim=len(run.trajectory.action[0]) if run.trajectory.action else 1)
         arrays["skill"] = np.array(cfg.skill)
-        arrays["params"] = np.array(json.dumps({**params, "done": run.done, **_scene_record(boxes)}, sort_keys=True))
+        arrays["params"] = np.array(json.dumps({**params, "done": run.done, **_scene_record(boxes), **self.variant_record},
+                                               sort_keys=True))
         arrays["final_dough"] = sim.observe().dough.astype(np.float32)
         arrays["dough_index"] = obs.dough_index.astype(np.int64)
         return arrays
@@ -207,6 +212,19 @@ class DemoWriter:
         arrays = self.generate(index)
         write_npz(demo_path(self.cfg.out, self.cfg.skill, index), arrays)
         return int(arrays["action"].shape[0]), time.perf_counter() - t0
+
+
+def variant_record(cls: type, variant: str) -> dict[str, Any]:
+    """What a demonstration's ``params`` say of its scene variant: nothing for ``default``; ``variant`` and,
+    for a variant kept for some training stages only (:attr:`pasta.core.DemoVariant.stages`), ``stages``."""
+    if variant == DEFAULT:
+        return {}
+    stages = list(cls.demo_variants[variant].stages)
+    unknown = sorted(set(stages) - set(TRAINING_STAGES))
+    if unknown:
+        raise ConfigError(f"skill '{cls.spec.name}' scene variant '{variant}' names unknown training stages {unknown}; "
+                          f"known: {', '.join(TRAINING_STAGES)}")
+    return {"variant": variant, **({"stages": stages} if stages else {})}
 
 
 def _scene_record(boxes: list[tuple]) -> dict[str, Any]:

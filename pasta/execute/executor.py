@@ -86,6 +86,14 @@ class ExecuteConfig:
             a piece the plan rolled once before spreads it on; 0 disables). 0.001: on the crs_twice validation
             configs such second rolls started 0.0002-0.0009 from their goal and first rolls 0.0009-0.0033
             (docs/policies.md, "crs_twice with learned policies").
+        overrun: a watched learned policy that reaches its own step cap (``max_steps`` of its checkpoint,
+            chosen on single-skill configs) runs on for at most this many env steps while each of them brings
+            the attended piece closer to the step's goal than before (0 disables; see
+            :class:`~pasta.tasks.executor.RegressionStop`).
+        skip_near: a watched step that takes as many pieces as it produces, whose attended pieces already
+            lie within ``regress_near`` of the step's goal, is skipped instead of started (a per-piece form
+            of ``skip_threshold``: a learned roll of a piece that is flat already only spreads it on). A
+            cut is never skipped: to Chamfer a dough and its two halves a few millimetres apart are close.
         unchanged_threshold: an observed entity within this Chamfer distance of a goal entity already is
             that goal piece: the planner never attends it and matches it to that piece in the set cost
             (:func:`pasta.core.matching.unchanged_pairs`, ``PlanningProblem.fixed``; 0 disables).
@@ -109,6 +117,8 @@ class ExecuteConfig:
     regress_rise: float = 0.5
     regress_progress: float = 0.5
     regress_near: float = 0.001
+    overrun: int = 40
+    skip_near: bool = True
     unchanged_threshold: float = 5e-4
     emd_points: int = 500
     emd_seed: int = 0
@@ -129,6 +139,8 @@ class ExecuteConfig:
             raise ConfigError(f"execute.regress_progress must be a number in (0, 1], got {self.regress_progress!r}")
         if not self.regress_near >= 0:  # also NaN
             raise ConfigError(f"execute.regress_near must be a number >= 0, got {self.regress_near!r}")
+        if int(self.overrun) < 0:
+            raise ConfigError(f"execute.overrun must be an integer >= 0 (env steps), got {self.overrun!r}")
         if not self.unchanged_threshold >= 0:  # also NaN
             raise ConfigError(f"execute.unchanged_threshold must be >= 0, got {self.unchanged_threshold}")
 
@@ -138,7 +150,7 @@ class ExecuteConfig:
 
         if self.regress_stop == "all" or self.regress_stop == self.controller:
             return RegressionStop(rise=float(self.regress_rise), progress=float(self.regress_progress),
-                                  near=float(self.regress_near))
+                                  near=float(self.regress_near), overrun=int(self.overrun))
         return None
 
 
@@ -460,6 +472,11 @@ def execute_plan(
         if cfg.skip_threshold > 0:
             planned = np.concatenate(decode_entities(encoder, step.state, cfg.decode_points), 0)
             skipped = float(chamfer(obs.dough, planned)) < cfg.skip_threshold
+        watch = cfg.regression_stop()
+        if cfg.skip_near and watch is not None and len(idx) and len(subgoal) == len(attended):
+            # a step that changes the piece count (a cut) is never done before it runs: to Chamfer, a dough
+            # and its two halves a few millimetres apart are close
+            skipped = skipped or watch.at_goal(obs.dough[idx], goal_points)
         if log:
             log.step_start(h, obs, labels, subgoal, step, attended)
         steps_run, done, stopped = 0, False, False
@@ -478,7 +495,7 @@ def execute_plan(
             start_step = sim.step_count
             try:
                 res = run_skill(sim, skill, controller, idx, goal_points, max_steps=cfg.max_steps or None,
-                                idle_steps=cfg.idle_steps, record=log is not None, stop=cfg.regression_stop())
+                                idle_steps=cfg.idle_steps, record=log is not None, stop=watch)
                 steps_run, done, stopped = steps_run + res.steps, res.done, stopped or res.stopped
                 if log:
                     log.skill_run(start_step, skill, res, cfg.idle_steps)

@@ -140,6 +140,8 @@ class PolicyController(Controller):
         self.steps = 0
         self.first_step = 0
         self.last_done_prob = 0.0
+        #: the last ``done`` came from ``max_steps`` alone (the done head had not fired)
+        self.at_cap = False
 
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None, scene: np.ndarray | None = None) -> Any:
         """The policy's learned start pose (:meth:`LearnedPolicy.approach_pose`) or ``None`` (then the
@@ -173,7 +175,8 @@ class PolicyController(Controller):
         taken = self.steps - self.first_step
         self.last_done_prob = float(prob[0])
         done = taken >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold
-        done = done or 0 < self.policy.max_steps <= taken
+        self.at_cap = not done and 0 < self.policy.max_steps <= taken  # done only because of max_steps
+        done = done or self.at_cap
         return action[0].astype(np.float32), bool(done)
 
 

@@ -34,8 +34,11 @@ from torch import nn
 from pasta.core.errors import ConfigError
 
 __all__ = ["MODULE", "ResetConfig", "ResetPoseNet", "ResetTrainConfig", "align_offset", "load_reset", "reset_command",
-           "piece_shares", "reset_inputs", "train_reset"]
+           "piece_shares", "reset_inputs", "share_below", "train_reset", "x_at_share"]
 
+#: units of a regressed share (``x_share``): shares spread about 4x as wide as offsets in 5 cm units, so the
+#: loss weighs both outputs of the cut's (share, phase) as it did (plane, phase)
+SHARE_SCALE = 0.2
 #: checkpoint module (and file) name of a reset-pose regressor
 MODULE = "reset_pose"
 NAME = "reset"
@@ -50,7 +53,11 @@ class ResetConfig:
     ``"skill"`` (the skill's ``reset_target`` of it, turned back by ``reset_tool_x``); ``outputs``: how
     many values the network regresses (``R``: the first an ``x`` offset in metres, the others unitless;
     ``len(skill.reset_target(x))`` for ``"skill"``); ``piece_share``: every goal point also carries its
-    piece's share of the goal's points (DBSCAN pieces; the executor's goal masses make those exact)."""
+    piece's share of the goal's points (DBSCAN pieces; the executor's goal masses make those exact);
+    ``x_share``: the first value is not an ``x`` offset in metres but the share of the piece's points whose
+    ``x`` lies below it (0-1), read back as that quantile of the observed piece's ``x``: a mass fraction carries
+    over to pieces and cuts longer than the demonstrations' (the cut's plane from the goal pieces' point
+    shares; docs/policies.md, "crs_twice with learned policies: the fix")."""
 
     points: int = 512
     widths: list[int] = field(default_factory=lambda: [64, 128, 256])
@@ -61,10 +68,21 @@ class ResetConfig:
     target: str = "tool"
     outputs: int = 1
     piece_share: bool = False
+    x_share: bool = False
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
         return cls(**{k: v for k, v in d.items() if k in cls.__dataclass_fields__})
+
+
+def x_at_share(cloud: np.ndarray, share: float) -> float:
+    """The ``x`` below which ``share`` (clipped to 0-1) of ``cloud (P, 3)``'s points lie (an ``x_share`` output)."""
+    return float(np.quantile(np.asarray(cloud, np.float64)[:, 0], np.clip(share, 0.0, 1.0)))
+
+
+def share_below(cloud: np.ndarray, x: float) -> float:
+    """The share of ``cloud (P, 3)``'s points whose ``x`` lies below ``x`` (an ``x_share`` target)."""
+    return float(np.mean(np.asarray(cloud, np.float64)[:, 0] < x))
 
 
 def _mlp(sizes: Sequence[int], last_act: bool = True) -> nn.Sequential:
@@ -86,7 +104,7 @@ class ResetPoseNet(nn.Module):
         self.point_mlp = _mlp([4 + int(self.cfg.piece_share), *self.cfg.widths])
         self.head = _mlp([4 * self.cfg.widths[-1], *self.cfg.head, self.cfg.outputs], last_act=False)
         units = torch.ones(self.cfg.outputs)
-        units[0] = self.cfg.scale
+        units[0] = SHARE_SCALE if self.cfg.x_share else self.cfg.scale
         self.register_buffer("units", units, persistent=False)
 
     def forward(self, points: torch.Tensor) -> torch.Tensor:
@@ -153,11 +171,17 @@ class ResetPose:
     def target(self) -> str:
         return str(self.net.cfg.target)
 
+    @property
+    def x_share(self) -> bool:
+        """Whether the first regressed value is a share of the piece's points (:class:`ResetConfig`)."""
+        net = getattr(self, "net", None)
+        return bool(net is not None and net.cfg.x_share)
+
     def tool_x(self, skill: Any, piece: np.ndarray, goal: np.ndarray) -> float:
         """The tool's start ``x`` for ``piece (P, 3)`` and ``goal (G, 3)``: the piece centroid ``x`` plus
         the predicted offset, through ``skill.reset_tool_x`` when the regressor learned the skill's target."""
         y = self.predict(piece, goal)
-        y[0] += float(np.asarray(piece, np.float64)[:, 0].mean())
+        y[0] = x_at_share(piece, y[0]) if self.x_share else y[0] + float(np.asarray(piece, np.float64)[:, 0].mean())
         return float(skill.reset_tool_x(tuple(float(v) for v in y))) if self.target == "skill" else float(y[0])
 
     @torch.no_grad()
@@ -171,8 +195,10 @@ class ResetPose:
         return self.net(torch.as_tensor(np.stack(pts))).mean(0).numpy().astype(np.float64)
 
     def offset(self, piece: np.ndarray, goal: np.ndarray) -> float:
-        """The predicted offset ``x`` (metres) from the piece centroid (:meth:`predict`'s first value)."""
-        return float(self.predict(piece, goal)[0])
+        """The predicted offset ``x`` (metres) from the piece centroid (:meth:`predict`'s first value, turned
+        into metres on ``piece`` for an ``x_share`` regressor)."""
+        y = float(self.predict(piece, goal)[0])
+        return x_at_share(piece, y) - float(np.asarray(piece, np.float64)[:, 0].mean()) if self.x_share else y
 
 
 def load_reset(directory: str | Path) -> ResetPose | None:
@@ -187,9 +213,10 @@ def load_reset(directory: str | Path) -> ResetPose | None:
     return ResetPose(net)
 
 
-def _dataset(demos: Sequence[Any], skill: Any = None) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+def _dataset(demos: Sequence[Any], skill: Any = None, x_share: bool = False) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
     """``(dough, goal, targets (R,), align steps)`` per demo: the tool's offset from the dough centroid
-    ``x``, or with ``skill`` its ``reset_target`` of the tool ``x`` (the first value as an offset)."""
+    ``x``, or with ``skill`` its ``reset_target`` of the tool ``x`` (the first value as an offset); with
+    ``x_share`` the first value is instead the share of the dough's points below that ``x``."""
     out = []
     for d in demos:
         off, k = align_offset(d)
@@ -199,6 +226,8 @@ def _dataset(demos: Sequence[Any], skill: Any = None) -> list[tuple[np.ndarray, 
             c = float(np.asarray(dough, np.float64)[:, 0].mean())
             y = np.asarray(skill.reset_target(c + off), np.float64)
             y[0] -= c
+        if x_share:
+            y[0] = share_below(dough, float(np.asarray(dough, np.float64)[:, 0].mean()) + y[0])
         out.append((dough, np.asarray(d.after, np.float32), y.astype(np.float32), k))
     return out
 
@@ -268,7 +297,8 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
     own = skill if cfg.target == "skill" else None
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    tr, va = _dataset(train, own), _dataset(val or train, own)
+    tr, va = _dataset(train, own, cfg.x_share), _dataset(val or train, own, cfg.x_share)
+    va_m = _dataset(val or train, own) if cfg.x_share else va  # held-out targets in metres, for the figures
     if len(tr[0][2]) != cfg.outputs:
         raise ValueError(f"the regressor has {cfg.outputs} outputs but the targets have {len(tr[0][2])} values")
     if decoded_goals > 0 and encoder is None:
@@ -299,17 +329,22 @@ def train_reset(train: Sequence[Any], val: Sequence[Any], cfg: ResetConfig | Non
             best, best_epoch = mae, epoch
             best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
         if log and (epoch % 20 == 0 or epoch == epochs - 1):
-            print(f"epoch {epoch} loss {loss.item():.4f} val MAE {mae * 1000:.2f} mm (best {best * 1000:.2f})",
+            unit = "share x 1000" if cfg.x_share else "mm"
+            print(f"epoch {epoch} loss {loss.item():.4f} val MAE {mae * 1000:.2f} {unit} (best {best * 1000:.2f})",
                   file=sys.stderr, flush=True)
     net.load_state_dict(best_state)
     net.eval()
     with torch.no_grad():
-        pred = net(vx).numpy()
+        pred = net(vx).numpy().astype(np.float64)
+    if cfg.x_share:  # shares -> offsets in metres on each held-out dough
+        for i, (dough, _, _, _) in enumerate(va):
+            pred[i, 0] = x_at_share(dough, pred[i, 0]) - float(np.asarray(dough, np.float64)[:, 0].mean())
+        vy = torch.as_tensor(np.stack([t[2] for t in va_m]).astype(np.float32))
     errs = np.abs(pred - vy.numpy())
     err = errs[:, 0]
     metrics = {"target": cfg.target, "train_demos": len(tr), "heldout_demos": len(va), "best_epoch": best_epoch,
                "heldout_mae_m": float(err.mean()), "heldout_median_ae_m": float(np.median(err)),
-               "heldout_max_ae_m": float(err.max()), "target_std_m": float(np.std([t[2][0] for t in va])),
+               "heldout_max_ae_m": float(err.max()), "target_std_m": float(np.std([t[2][0] for t in va_m])),
                "demo_align_steps_median": float(np.median([t[3] for t in tr]))}
     if cfg.outputs > 1:  # the unitless values (the cut: the knife's phase in its cell)
         metrics["heldout_mae_other"] = [float(v) for v in errs[:, 1:].mean(0)]
@@ -340,6 +375,7 @@ class ResetTrainConfig:
             reconstruction (``encoder_weights``; empty: the shipped VAE), as at execution.
         decoded_noise: std of Gaussian noise on the shape code of those reconstructions (4 per piece).
         piece_share: every goal point also carries its piece's share of the goal's points (an input).
+        x_share: regress the first value as the share of the dough's points below it (:class:`ResetConfig`).
         threads: torch CPU threads (0: leave as is).
         progress: print the held-out error every 20 epochs (stderr).
     """
@@ -357,6 +393,7 @@ class ResetTrainConfig:
     decoded_goals: float = 0.0
     decoded_noise: float = 0.0
     piece_share: bool = False
+    x_share: bool = False
     encoder_weights: str = ""
     threads: int = 1
     progress: bool = True
@@ -378,11 +415,11 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
     if cfg.target not in ("tool", "skill"):
         raise ConfigError(f"python -m pasta.policy.reset: target must be tool or skill, got {cfg.target!r}")
     skill_obj = get_plugins().skills.create(skill)
-    demos = load_demos(data, [skill])
+    demos = load_demos(data, [skill], stage="reset")
     train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=cfg.seed)
     outputs = len(skill_obj.reset_target(0.5)) if cfg.target == "skill" else 1
     net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws, target=cfg.target, outputs=outputs,
-                          piece_share=cfg.piece_share)
+                          piece_share=cfg.piece_share, x_share=cfg.x_share)
     with torch_threads(cfg.threads):
         encoder = None
         if cfg.decoded_goals > 0:

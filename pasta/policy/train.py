@@ -150,7 +150,7 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
     """Load the demonstrations of ``skill`` under ``data`` (shared reader), split them by demonstration, build the task."""
     from pasta.train.data import load_demos, split_by_demo
 
-    demos = load_demos(data, [skill])
+    demos = load_demos(data, [skill], stage="policy")
     if cfg.max_demos > 0:
         demos = demos[: cfg.max_demos]
     if cfg.start_at_reset:

@@ -85,8 +85,16 @@ class RegressionStop:
     descending) is never stopped, unless its piece started within ``near`` (Chamfer) of the goal: that
     piece is at its goal already (a plan that rolls a rolled piece once more), so moving away counts.
 
+    ``overrun``: a controller that ended only because it reached its own step cap (a learned policy's
+    ``max_steps``; it says so with ``at_cap``) runs on for at most this many env steps while every one of
+    them brings the piece closer to the goal than it has been (:meth:`run_on`). The caps were chosen on
+    single-skill configs; a cut that must carry its piece further than any demonstration did is still
+    closing on its goal when its cap ends it (docs/policies.md). 0 (the default) keeps the caps.
+
     Use: ``start(piece (K, 3), goal (G, 3))`` before the first action, then ``update(piece) -> stop``
-    after every env step. One instance serves one step at a time (``start`` resets it).
+    after every env step (``run_on(piece) -> go on`` instead, once the controller is at its cap). One
+    instance serves one step at a time (``start`` resets it). :meth:`at_goal` says whether a piece starts
+    within ``near`` of its goal.
     """
 
     rise: float = 0.5
@@ -94,12 +102,14 @@ class RegressionStop:
     progress: float = 0.5
     points: int = 256
     near: float = 0.0
+    overrun: int = 0
 
     def __post_init__(self) -> None:
-        ok = self.rise > 0 and self.patience >= 1 and 0 < self.progress <= 1 and self.points >= 1 and self.near >= 0
+        ok = (self.rise > 0 and self.patience >= 1 and 0 < self.progress <= 1 and self.points >= 1
+              and self.near >= 0 and self.overrun >= 0)
         if not ok:
             raise InputError("RegressionStop needs rise > 0, patience >= 1, progress in (0, 1], points >= 1, "
-                             f"near >= 0; got {self}")
+                             f"near >= 0, overrun >= 0; got {self}")
         self._goal: np.ndarray | None = None
 
     def _subset(self, cloud: np.ndarray) -> np.ndarray:
@@ -115,15 +125,30 @@ class RegressionStop:
         self._goal = self._subset(goal)
         self.initial = self.best = self._distance(piece)
         self.above = 0
+        self.closer = False  # the last update set a new best distance
+        self.overran = 0  # env steps run past the controller's cap
+
+    def at_goal(self, piece: np.ndarray, goal: np.ndarray) -> bool:
+        """Whether ``piece (K, 3)`` lies within ``near`` (Chamfer, the measure of :meth:`update`) of ``goal (G, 3)``."""
+        return self.near > 0 and float(chamfer(self._subset(piece), self._subset(goal))) < self.near
 
     def update(self, piece: np.ndarray) -> bool:
         if self._goal is None:
             raise InputError("RegressionStop.update before start")
         d = self._distance(piece)
+        self.closer = d < self.best
         self.best = min(self.best, d)
         progressed = self.best < self.progress * self.initial or self.initial < self.near
         self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
         return self.above >= self.patience
+
+    def run_on(self, piece: np.ndarray) -> bool:
+        """After an env step the controller took at its cap: whether the step may go on past the cap
+        (``overrun`` not used up, and that step brought ``piece`` closer than ever)."""
+        if self.overran >= self.overrun:
+            return False
+        self.overran += 1
+        return not self.update(piece) and self.closer
 
 
 def piece_indices(piece: Any, num_points: int) -> np.ndarray:
@@ -208,7 +233,7 @@ def run_skill(
     traj = Trajectory() if record else None
     view = skill_observation(obs, tool, idx, goal_points)
     controller.reset(view)
-    steps, done, stopped = 0, False, False
+    steps, done, stopped, capped = 0, False, False, False
     if stop is not None and goal_points is not None:
         stop.start(view.piece, view.goal)
     else:
@@ -226,10 +251,14 @@ def run_skill(
         obs = sim.observe()
         view = skill_observation(obs, tool, idx, goal_points)
         if done:
-            break
+            if stop is None or not getattr(controller, "at_cap", False) or not stop.run_on(view.piece):
+                break
+            done, capped = False, True  # past the controller's cap while the piece still closes on its goal
+            continue
         if stop is not None and stop.update(view.piece):
             done = stopped = True
             break
+    done = done or capped  # a controller run past its own cap had reported done there
     if traj is not None:
         traj.add_obs(obs, tool)
     for _ in range(max(0, idle_steps)):

@@ -128,19 +128,29 @@ def _final_dough(arrays: dict, path: Path) -> np.ndarray | None:
     return final
 
 
-def load_demos(data_dir: str | Path, skills: Iterable[str] | None = None) -> list[Demo]:
+def load_demos(data_dir: str | Path, skills: Iterable[str] | None = None, *, stage: str | None = None) -> list[Demo]:
     """Every demonstration under ``data_dir`` (of ``skills`` if given).
+
+    ``stage``: the training stage that reads them (``vae``, ``feasibility``, ``cost``, ``policy``, ``reset``);
+    a demonstration whose scene variant keeps it for some stages only (its ``params["stages"]``, written by
+    ``pasta demos`` from :attr:`pasta.core.DemoVariant.stages`) is left out of the others.
 
     Raises:
         InputError: no demonstration found.
     """
     skills = list(skills) if skills is not None else None
     paths = demo_paths(data_dir, skills)
+    which = f" of skill(s) {', '.join(skills)}" if skills else ""
     if not paths:
-        which = f" of skill(s) {', '.join(skills)}" if skills else ""
         fix = f"; generate them with `pasta demos skill={skills[0]} out={data_dir}`" if skills else ""
         raise InputError(f"no demonstrations{which} under {data_dir} (expected <skill>/demo_00000.npz files){fix}")
-    return [load_demo(p) for p in paths]
+    demos = [load_demo(p) for p in paths]
+    if stage is not None:
+        demos = [d for d in demos if stage in d.params.get("stages", (stage,))]
+        if not demos:
+            raise InputError(f"no demonstrations{which} under {data_dir} are for training stage '{stage}' "
+                             "(all of them belong to scene variants kept for other stages)")
+    return demos
 
 
 def split_by_demo(demos: Sequence[Demo], *, val_fraction: float = 0.2, seed: int = 0) -> tuple[list[Demo], list[Demo]]:

@@ -56,8 +56,8 @@ def train(module: str, data: str | Path, out: str | Path, overrides: Mapping[str
         return {"vae": _train_vae, "feasibility": _train_feasibility, "cost": _train_cost}[module](Path(data), Path(out), loop, cfg)
 
 
-def _split(data: Path, cfg: Any, loop: LoopConfig, skills: list[str] | None = None):
-    demos = load_demos(data, skills)
+def _split(data: Path, cfg: Any, loop: LoopConfig, stage: str, skills: list[str] | None = None):
+    demos = load_demos(data, skills, stage=stage)
     train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=loop.seed)
     if not val:
         print("pasta train: warning: too few demonstrations to hold one out; validating on the training set", file=sys.stderr)
@@ -74,7 +74,7 @@ def _finish(directory: Path, module: str, result: Any, figures: dict[str, Any], 
 
 def _train_vae(data: Path, out: Path, loop: LoopConfig, cfg: VAETrainConfig) -> dict[str, Any]:
     directory = out / (cfg.subdir or (FLAT_VAE_DIR if cfg.flat else VAE_DIR))
-    train, val = _split(data, cfg, loop)
+    train, val = _split(data, cfg, loop, "vae")
     task = VAETask(collect_clouds(train, cfg, seed=loop.seed), collect_clouds(val, cfg, seed=loop.seed), cfg, seed=loop.seed)
     result = fit(task, loop, directory)
     return _finish(directory, "vae", result, vae_metrics(task, directory), data, len(train), len(val))
@@ -109,7 +109,7 @@ def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: Feasibility
     spec = get_plugins().skills.info(cfg.skill).spec
     n_in, n_out = (1, 1) if cfg.flat else (spec.n_in, spec.n_out)  # Flat 3D: scene -> scene
     encoder = _load_encoder(out, cfg.vae, cfg.flat)
-    train, val = _split(data, cfg, loop, [cfg.skill])
+    train, val = _split(data, cfg, loop, "feasibility", [cfg.skill])
     enc = {name: _encode(d, encoder, cfg, loop.seed, pairs_only=True) for name, d in (("train", train), ("val", val))}
     tuples = {name: positive_tuples(e, n_in, n_out, cfg, seed=loop.seed) for name, e in enc.items()}
     task = FeasibilityTask(cfg.skill, n_in, n_out, tuples["train"], tuples["val"], encoder, cfg, seed=loop.seed)
@@ -123,7 +123,7 @@ def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: Feasibility
 
 def _train_cost(data: Path, out: Path, loop: LoopConfig, cfg: CostTrainConfig) -> dict[str, Any]:
     encoder = _load_encoder(out, cfg.vae, cfg.flat)
-    train, val = _split(data, cfg, loop)
+    train, val = _split(data, cfg, loop, "cost")
     pairs = {name: entity_pairs(_encode(d, encoder, cfg, loop.seed), cfg, seed=loop.seed + i)
              for i, (name, d) in enumerate((("train", train), ("val", val)))}
     task = CostTask(pairs["train"], pairs["val"], encoder.latent_dim, cfg, seed=loop.seed)

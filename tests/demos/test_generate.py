@@ -49,10 +49,27 @@ def test_roll_pieces_scene_spans_the_pushed_pieces_of_the_crs_tasks():
     assert "pieces" in variants(get_plugins().skills.load("roll"))
 
 
+def test_long_cut_scene_covers_the_first_cut_of_crs_twice():
+    boxes = sampled_boxes("cut", "long")
+    lengths = np.array([s[0] for _, s in boxes])
+    assert lengths.min() >= 0.3 and lengths.max() <= 0.35  # the default scene: 0.2-0.35
+    cfg = skill_config("cut", "long")
+    assert (cfg.offset_max, cfg.shift_max) == (0.25, 0.12) and skill_config("cut").offset_max == 0.2
+    # the expert's cuts reach crs_twice's first cut (0.20-0.24 from the end, travel 0.10-0.12)
+    cut = type(get_plugins().skills.create("cut"))(cfg)
+    rng = np.random.default_rng(0)
+    piece = np.random.default_rng(1).uniform([0.55, 0.0, 0.45], [0.9, 0.08, 0.52], (2000, 3))
+    left = float(np.percentile(piece[:, 0], 0.5))
+    params = [cut.sample_expert_params(piece, rng) for _ in range(300)]
+    offsets = np.array([p["cut_x"] - left for p in params])
+    shifts = -np.array([p["shift"] for p in params])
+    assert offsets.max() > 0.23 and offsets.max() <= 0.25 + 1e-9 and shifts.max() > 0.11
+
+
 def test_scene_variants_are_checked(tmp_path):
     cut = get_plugins().skills.create("cut")
-    assert variants(type(cut)) == ["default"] and variants(get_plugins().skills.load("push")) == ["default", "wide"]
-    with pytest.raises(ConfigError, match="skill 'cut' has no demonstration scene 'wide'; its scenes: default"):
+    assert variants(type(cut)) == ["default", "long"] and variants(get_plugins().skills.load("push")) == ["default", "wide"]
+    with pytest.raises(ConfigError, match="skill 'cut' has no demonstration scene 'wide'; its scenes: default, long"):
         scene_boxes(cut, np.random.default_rng(0), 0.0, "wide")
     with pytest.raises(ConfigError, match="scene"):
         validate(DemoConfig(skill="cut", out=str(tmp_path), scene="wide"))

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from pasta.core.plan import PlanStep
+from pasta.core.plan import Plan, PlanStep, as_latents
 from pasta.execute import ExecuteConfig, attend, execute_plan
 
 
@@ -72,6 +72,54 @@ def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
                        goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64,
                                                          retries=0, regress_near=0.0))  # the piece starts at this goal
     assert res.steps[0].env_steps == 3 and not res.steps[0].done and sim.step_count == 4
+
+
+@pytest.mark.sim
+def test_skip_near_skips_a_watched_step_whose_piece_is_at_its_goal(nudge, box_encoder, one_step_plan):
+    from pasta.sim import SimConfig, Simulator, crs_dough
+
+    cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
+    sim = Simulator(cfg)
+    steps = {}
+    for skip in (False, True):
+        obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
+        # the goal is the observed dough: the step's goal piece is where the piece already is
+        res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": nudge},
+                           encoder=box_encoder, goal=obs.dough,
+                           cfg=ExecuteConfig(controller="heuristic", regress_stop="all", skip_near=skip, idle_steps=1,
+                                             decode_points=64, retries=0))
+        steps[skip] = res.steps[0]
+    assert steps[True].skipped and steps[True].env_steps == 0
+    assert not steps[False].skipped and steps[False].env_steps > 0
+    # only a watched step is skipped: the heuristic controller is not watched by default
+    obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
+    res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": nudge}, encoder=box_encoder,
+                       goal=obs.dough, cfg=ExecuteConfig(controller="heuristic", skip_near=True, idle_steps=1,
+                                                         decode_points=64, retries=0))
+    assert not res.steps[0].skipped
+
+
+@pytest.mark.sim
+def test_skip_near_never_skips_a_step_that_changes_the_piece_count(nudge, box_encoder):
+    from pasta.core import SkillSpec
+    from pasta.sim import SimConfig, Simulator, crs_dough
+
+    class Halve(type(nudge)):  # 1 -> 2, like a cut
+        spec = SkillSpec("halve", 1, 2, "pusher", "test skill")
+
+    cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
+    sim = Simulator(cfg)
+    skipped = {}
+    for skill, outputs in ((nudge, 1), (Halve(), 2)):
+        obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
+        u = [0.0, 0.0, *obs.dough.mean(0).tolist()]
+        step = PlanStep(skill.name, (0,), as_latents([u] * outputs), 1.0, as_latents([u] * outputs))
+        plan = Plan((step,), as_latents([u]), as_latents([u] * outputs), 0.0, 1.0, "hand", 0)
+        exe = ExecuteConfig(controller="heuristic", regress_stop="all", regress_near=1.0, skip_near=True, goal_pieces=False,
+                            idle_steps=1, decode_points=64, retries=0)  # near 1.0: every piece is "at its goal"
+        res = execute_plan(sim, plan, skills={skill.name: skill}, encoder=box_encoder, goal=obs.dough, cfg=exe)
+        skipped[skill.name] = res.steps[0].skipped
+    assert skipped == {"nudge": True, "halve": False}
 
 
 class _TwoBoxDecoder:

@@ -56,6 +56,24 @@ def test_regressor_overfits_a_tiny_set(tmp_path):
     assert abs(reset.offset(d.dough[0], d.after) - align_offset(d)[0]) < 0.01
 
 
+def test_share_regressor_overfits_a_tiny_set_and_reads_back_metres(tmp_path):
+    rng = np.random.default_rng(0)
+    demos = [_cut_demo(i, rng, points=200)[0] for i in range(6)]
+    cfg = ResetConfig(points=64, widths=[32, 64], head=[64], x_share=True, piece_share=True)
+    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0)
+    assert metrics["heldout_mae_m"] < 0.004, metrics  # reported in metres, as for an offset regressor
+    save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
+    reset = load_reset(tmp_path)
+    d = demos[0]
+    xs = np.asarray(d.dough[0], np.float64)[:, 0]
+    share = float(reset.predict(d.dough[0], d.after)[0])
+    assert 0.0 < share < 1.0 and abs(share - np.mean(xs < xs.mean() + align_offset(d)[0])) < 0.05
+    assert abs(reset.offset(d.dough[0], d.after) - align_offset(d)[0]) < 0.01
+    # the tool x is that quantile of the piece's x: the same share of a longer piece lands further along it
+    longer = d.dough[0] * np.float32([2.0, 1.0, 1.0])
+    assert np.isclose(reset.tool_x(_Skill(), longer, d.after), np.quantile(longer[:, 0], np.clip(reset.predict(longer, d.after)[0], 0, 1)))
+
+
 class _Skill:
     name = "cut"
 

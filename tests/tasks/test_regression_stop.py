@@ -141,3 +141,68 @@ def test_execute_config_chooses_which_controllers_are_watched():
             ExecuteConfig(regress_progress=bad)
     with pytest.raises(InputError, match="near >= 0"):
         RegressionStop(near=-1.0)
+
+
+class _CappedLeft(Controller):
+    """Pushes left at full speed and reports done after ``cap`` actions, saying it was its cap (``at_cap``),
+    as a learned policy does at its ``max_steps``."""
+
+    def __init__(self, cap: int) -> None:
+        self.cap, self.taken, self.at_cap = cap, 0, False
+
+    def act(self, obs: SkillObservation):
+        self.taken += 1
+        self.at_cap = self.taken >= self.cap
+        return np.array([-1.0]), self.at_cap
+
+
+def test_overrun_runs_past_the_cap_only_while_the_piece_closes_on_its_goal():
+    goal_dx = -0.15  # 15 env steps away; the controller's cap is 10
+    sim = _PushSim()
+    run = run_skill(sim, _SKILL, _CappedLeft(10), np.arange(300), _goal(sim, goal_dx), idle_steps=0,
+                    stop=RegressionStop(overrun=20))
+    # on to the goal (15 steps) and one step past it, where the distance first grows: then it stops
+    assert run.done and run.steps == 16, run.steps
+    # without overrun the cap ends it 5 steps short
+    sim0 = _PushSim()
+    assert run_skill(sim0, _SKILL, _CappedLeft(10), np.arange(300), _goal(sim0, goal_dx), idle_steps=0,
+                     stop=RegressionStop()).steps == 10
+    # overrun is a budget: at most that many steps past the cap
+    sim2 = _PushSim()
+    assert run_skill(sim2, _SKILL, _CappedLeft(10), np.arange(300), _goal(sim2, goal_dx), idle_steps=0,
+                     stop=RegressionStop(overrun=3)).steps == 13
+    # the skill's own step limit still ends it, and it counts as done (the controller said so at its cap)
+    sim4 = _PushSim()
+    run4 = run_skill(sim4, _SKILL, _CappedLeft(10), np.arange(300), _goal(sim4, -0.5), idle_steps=0,
+                     stop=RegressionStop(overrun=100))
+    assert run4.steps == _SKILL.max_steps and run4.done
+    # a step moving away from its goal at the cap is not continued
+    sim3 = _PushSim()
+    assert run_skill(sim3, _SKILL, _CappedLeft(10), np.arange(300), _goal(sim3, +0.15), idle_steps=0,
+                     stop=RegressionStop(overrun=20)).steps == 10
+
+
+def test_overrun_leaves_a_done_head_alone():
+    class HeadDone(_CappedLeft):  # done by its own head: no at_cap
+        def act(self, obs):
+            action, done = super().act(obs)
+            self.at_cap = False
+            return action, done
+
+    sim = _PushSim()
+    run = run_skill(sim, _SKILL, HeadDone(10), np.arange(300), _goal(sim, -0.15), idle_steps=0,
+                    stop=RegressionStop(overrun=20))
+    assert run.steps == 10
+
+
+def test_at_goal_and_overrun_settings():
+    goal = np.zeros((10, 3), np.float32)
+    stop = RegressionStop(near=1e-3)
+    assert stop.at_goal(goal + np.float32([0.01, 0, 0]), goal)  # Chamfer 2e-4
+    assert not stop.at_goal(goal + np.float32([0.1, 0, 0]), goal)
+    assert not RegressionStop().at_goal(goal, goal)  # near 0: never
+    assert ExecuteConfig(controller="learned", overrun=25).regression_stop().overrun == 25
+    with pytest.raises(ConfigError, match="overrun"):
+        ExecuteConfig(overrun=-1)
+    with pytest.raises(InputError, match="overrun >= 0"):
+        RegressionStop(overrun=-2)

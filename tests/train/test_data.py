@@ -51,3 +51,37 @@ def test_missing_dataset_and_skill(tmp_path):
     root = write_synthetic_dataset(tmp_path / "d", per_skill=1, skills=("push",), steps=1, num_points=20)
     with pytest.raises(InputError, match="skill"):
         load_demos(root, ["cut"])
+
+
+def test_demos_of_a_variant_kept_for_some_stages_are_left_out_of_the_others(tmp_path):
+    from pasta.tasks.npz import write_npz
+
+    root = write_synthetic_dataset(tmp_path, per_skill=3, skills=("cut",), steps=1, num_points=30)
+    path = root / "cut" / "demo_00002.npz"  # as `pasta demos scene=V` writes it for a variant with stages=("reset",)
+    with np.load(path, allow_pickle=False) as f:
+        arrays = {k: f[k] for k in f.files}
+    arrays["params"] = np.array(json.dumps({**json.loads(str(arrays["params"])), "variant": "long", "stages": ["reset"]}))
+    write_npz(path, arrays)
+    assert len(load_demos(root)) == 3 and len(load_demos(root, ["cut"], stage="reset")) == 3
+    assert [d.index for d in load_demos(root, ["cut"], stage="policy")] == [0, 1]
+    assert len(load_demos(root, stage="vae")) == 2
+    for i in (0, 1):
+        (root / "cut" / f"demo_{i:05d}.npz").unlink()
+    with pytest.raises(InputError, match="training stage 'feasibility'"):
+        load_demos(root, ["cut"], stage="feasibility")
+
+
+def test_variant_record_names_the_variant_and_its_stages():
+    from pasta.core import DemoVariant, Skill, SkillSpec
+    from pasta.core.errors import ConfigError
+    from pasta.demos.generate import variant_record
+
+    class Knife(Skill):
+        spec = SkillSpec("knife", 1, 2, "knife")
+        demo_variants = {"wide": DemoVariant(), "long": DemoVariant(stages=("reset",)), "bad": DemoVariant(stages=("resets",))}
+
+    assert variant_record(Knife, "default") == {}
+    assert variant_record(Knife, "wide") == {"variant": "wide"}
+    assert variant_record(Knife, "long") == {"variant": "long", "stages": ["reset"]}
+    with pytest.raises(ConfigError, match="unknown training stages \\['resets'\\]"):
+        variant_record(Knife, "bad")

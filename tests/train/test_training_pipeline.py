@@ -105,7 +105,8 @@ def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
         return {"generated": len(todo), "skipped": cfg.num - len(todo), "wall_s": 0.0, "mean_steps": 3.0}
 
     monkeypatch.setattr(generate, "generate_demos", fake_generate)
-    args = [f"data={tmp_path / 'demos'}", f"out={tmp_path / 'models'}", "stages=demos", "skills=cut", "workers=0"]
+    args = [f"data={tmp_path / 'demos'}", f"out={tmp_path / 'models'}", "stages=demos", "skills=cut", "workers=0",
+            "variant_demos=0"]  # the default demos only (the cut's `long` variant unit: the test below)
     assert _status(run_pipeline([*args, "num_demos=2"], echo=lambda _: None)) == {"demos/cut": "ran"}
     assert _status(run_pipeline([*args, "num_demos=2", "workers=2"], echo=lambda _: None)) == {"demos/cut": "skipped"}
     results = run_pipeline([*args, "num_demos=3"], echo=lambda _: None)
@@ -135,7 +136,9 @@ def test_demos_stage_adds_the_variant_units_the_skills_declare():
     wide = {u.name: u for u in units}["demos/push-wide"]
     assert {f"demos/{s}" for s in demo_skills()} <= {u.name for u in units}  # one per skill, plus variants
     builtin = [u.name for u in units if u.configs[0].skill in ("cut", "push", "roll")]
-    assert builtin == ["demos/cut", "demos/push", "demos/push-wide", "demos/roll", "demos/roll-board"]
+    assert builtin == ["demos/cut", "demos/cut-long", "demos/push", "demos/push-wide", "demos/roll", "demos/roll-board"]
+    long = {u.name: u for u in units}["demos/cut-long"]
+    assert (long.configs[0].num, long.configs[0].scene) == (170, "long")  # 20 default + 150 for the reset pose
     assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (170, "wide", "push")
     board = {u.name: u for u in units}["demos/roll-board"]
     assert (board.configs[0].num, board.configs[0].scene) == (120, "board")  # 20 default + 100 on the board

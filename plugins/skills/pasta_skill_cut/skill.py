@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
 from pasta_skill_cut.plugin import SPEC, CutConfig
 from pasta_skill_cut.tool import KNIFE, KNIFE_HALF, KNIFE_PARK
@@ -315,12 +315,23 @@ class CutSkill(Skill):
     #: the execution step and the tool pose and learns from its reset pose on (the align phase, which the
     #: learned reset pose replaces, dropped from the demos); a learned reset pose (stage reset: the plane
     #: and the knife's cell phase, goal pieces' point shares as an input, half the goal pieces decoded
-    #: from noisy shape codes; docs/policies.md, "The cut's reset pose and the grid cell"); the
+    #: from noisy shape codes; docs/policies.md, "The cut's reset pose and the grid cell"; the plane as the
+    #: share of the piece's points left of it, ``x_share``: "crs_twice with learned policies: the fix"); the
     #: stopping-rule grid (select)
+    #: ``long``: the cuts crs_twice asks first (0.20-0.24 from the end of a 0.34-0.35 dough, travel 0.10-0.12),
+    #: beyond the default demos' 0.20 and 0.08: a learned reset pose trained without them puts that plane
+    #: 6-33 mm short (docs/policies.md, "crs_twice with learned policies")
+    #: Only the reset pose learns from them (``stages``): the policy, its feasibility and the planner's
+    #: networks stay as trained on the default demos.
+    demo_variants = {"long": DemoVariant(config={"offset_max": 0.25, "shift_max": 0.12}, pipeline_demos=150,
+                                         stages=("reset",),
+                                         description="a 0.3-0.35 long dough cut up to 0.25 from its end, the knife "
+                                                     "travelling up to 0.12 (for the learned reset pose only)")}
     training_defaults = {
         "feasibility": {"stride": 3, "shift_per_positive": 5, "shift_entities": "one", "shift_max": 0.25},
         "policy": {"step_feature": True, "pose_feature": True, "start_at_reset": True},
-        "reset": {"target": "skill", "piece_share": True, "decoded_goals": 0.5, "decoded_noise": 0.5, "epochs": 90},
+        "reset": {"target": "skill", "piece_share": True, "x_share": True, "decoded_goals": 0.5, "decoded_noise": 0.5,
+                  "epochs": 90},
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},
     }
 
@@ -389,7 +400,8 @@ class CutSkill(Skill):
         return CutController(self.config)
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
-        """The CRS dough (:func:`pasta.tasks.library.crs_box`): one long box at the right of the workspace."""
+        """The CRS dough (:func:`pasta.tasks.library.crs_box`): one long box at the right of the workspace,
+        0.2-0.35 long (``long``: 0.3-0.35)."""
         from pasta.tasks.library import crs_box
 
-        return [crs_box(rng, floor_y)]
+        return [crs_box(rng, floor_y, length=(0.3, 0.35))] if variant == "long" else [crs_box(rng, floor_y)]
