@@ -144,13 +144,23 @@ def load_demos(data_dir: str | Path, skills: Iterable[str] | None = None, *, sta
     if not paths:
         fix = f"; generate them with `pasta demos skill={skills[0]} out={data_dir}`" if skills else ""
         raise InputError(f"no demonstrations{which} under {data_dir} (expected <skill>/demo_00000.npz files){fix}")
-    demos = [load_demo(p) for p in paths]
     if stage is not None:
-        demos = [d for d in demos if stage in d.params.get("stages", (stage,))]
-        if not demos:
+        paths = [p for p in paths if stage in _stages(p, stage)]
+        if not paths:
             raise InputError(f"no demonstrations{which} under {data_dir} are for training stage '{stage}' "
                              "(all of them belong to scene variants kept for other stages)")
-    return demos
+    return [load_demo(p) for p in paths]
+
+
+def _stages(path: Path, default: str) -> Sequence[str]:
+    """The training stages a demonstration is for (its ``params["stages"]``; ``(default,)`` when it names
+    none), read without loading its arrays."""
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            params = str(f["params"]) if "params" in f.files else ""
+    except (OSError, ValueError) as exc:
+        raise InputError(f"cannot read demonstration {path}: {exc}") from None
+    return json.loads(params).get("stages", (default,)) if params else (default,)
 
 
 def split_by_demo(demos: Sequence[Demo], *, val_fraction: float = 0.2, seed: int = 0) -> tuple[list[Demo], list[Demo]]:
