@@ -221,13 +221,13 @@ def _dataset(demos: Sequence[Any], skill: Any = None, x_share: bool = False) -> 
     for d in demos:
         off, k = align_offset(d)
         dough = np.asarray(d.dough[0], np.float32)
+        c = float(np.asarray(dough, np.float64)[:, 0].mean())
         y = np.array([off], np.float32)
         if skill is not None:
-            c = float(np.asarray(dough, np.float64)[:, 0].mean())
             y = np.asarray(skill.reset_target(c + off), np.float64)
             y[0] -= c
         if x_share:
-            y[0] = share_below(dough, float(np.asarray(dough, np.float64)[:, 0].mean()) + y[0])
+            y[0] = share_below(dough, c + y[0])
         out.append((dough, np.asarray(d.after, np.float32), y.astype(np.float32), k))
     return out
 
