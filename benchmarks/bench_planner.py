@@ -29,7 +29,7 @@ import torch
 
 from pasta.core import Encoder, PlanningProblem, Skill, SkillSpec
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import configured
+from pasta.testing import configured
 
 SPECS = [SkillSpec("cut", 1, 2, "knife"), SkillSpec("push", 1, 1, "pusher"), SkillSpec("roll", 1, 1, "roller")]
 #: the two further registered skills (LiftSpread / GatherMove issue): their cardinalities, for --scaling

@@ -1,7 +1,7 @@
 """The Task contract: a seeded generator of (initial state, goal) pairs with a ground-truth skill chain.
 
 A task plugin registers a :class:`Task` subclass through ``pasta_register_tasks``. The machinery
-(``pasta run``, ``pasta eval``, the oracle, :class:`pasta.plugins.testing.TaskContract`) only uses what
+(``pasta run``, ``pasta eval``, the oracle, :class:`pasta.testing.TaskContract`) only uses what
 this interface names; how instances are generated (the built-in tasks run scripted experts in the
 simulator, :class:`pasta.tasks.base.Task`) is the plugin's business.
 

@@ -1,10 +1,16 @@
-"""Which skills can make demonstrations, and the scenes they start from (the skill's own hooks).
+"""Which skills can make demonstrations, the scenes they start from, and the public scene helpers.
 
 A skill makes demonstrations when its class overrides the hooks of :attr:`pasta.core.Skill.DEMO_HOOKS`
 (:meth:`~pasta.core.Skill.has_expert`): ``demo_scene`` gives the boxes of dough a demonstration starts
 from, ``sample_expert_params`` / ``expert_approach_pose`` / ``expert`` run it. Scene variants
 (:attr:`~pasta.core.Skill.demo_variants`, ``pasta demos scene=NAME``) change the scene and the expert's
 config. Nothing here names a skill: everything comes from what is registered.
+
+Scene helpers shared by task plugins and skill plugins' demonstration scenes (a scene is a list of boxes
+``[(centre (3,), size (3,))]``; unit cube, y up, ``floor`` the height the dough rests on): :func:`crs_box`
+(the CRS dough), :func:`small_box` (a piece like the one a cut leaves), :func:`lumps` (three lumps in a
+row), the spreading area :data:`SPREAD_X` and the dough height :data:`HEIGHT`. Tasks and demonstrations
+draw from the same samplers, so the scenes a skill is trained on are the scenes its tasks show.
 """
 
 from __future__ import annotations
@@ -115,3 +121,42 @@ def scene_particles(boxes: list[tuple], n: int, rng: np.random.Generator) -> tup
     parts = [box_particles(c, s, int(k), rng) for (c, s), k in zip(boxes, counts)]
     owner = np.concatenate([np.full(int(k), i) for i, k in enumerate(counts)])
     return np.concatenate(parts), owner
+
+
+# -- scene helpers ---------------------------------------------------------------------------------------
+#: x range of the spreading area (where pieces are rolled flat)
+SPREAD_X = (0.22, 0.32)
+#: height of the CRS dough and of the small pieces cut off it
+HEIGHT = 0.08
+
+
+def crs_box(rng: np.random.Generator, floor: float, length: tuple[float, float] = (0.2, 0.35),
+            z_spread: float = 0.2) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """(centre, size) of the CRS dough: at the right end of the workspace, resting on the floor."""
+    length_ = rng.uniform(*length)
+    depth = rng.uniform(0.06, 0.08)
+    z = 0.5 + rng.uniform(-z_spread, z_spread)
+    return (0.9 - length_ / 2, floor + HEIGHT / 2, z), (length_, HEIGHT, depth)
+
+
+def small_box(rng: np.random.Generator, floor: float, x: tuple[float, float], z: tuple[float, float]):
+    """(centre, size) of a small piece like the one a cut leaves: x-length U(0.1, 0.12), depth U(0.06, 0.08)."""
+    size = (rng.uniform(0.1, 0.12), HEIGHT, rng.uniform(0.06, 0.08))
+    return (rng.uniform(*x), floor + HEIGHT / 2, rng.uniform(*z)), size
+
+
+def lumps(rng: np.random.Generator, floor_y: float, x: tuple[float, float], z: tuple[float, float]) -> list:
+    """Three dough lumps ``[(centre, size)]`` in a row along x: sides U(0.04, 0.05) (height 0.04-0.05),
+    3.5-5 cm apart (more than DBSCAN's 3 cm: three entities), each shifted up to 2 cm in z; the row's
+    middle at x in ``x``, z in ``z``."""
+    sides = rng.uniform(0.04, 0.05, size=3)
+    gaps = rng.uniform(0.035, 0.05, size=2)
+    span = float(sides.sum() + gaps.sum())
+    left = float(rng.uniform(*x)) - span / 2
+    zc = float(rng.uniform(*z))
+    out = []
+    for i, s in enumerate(sides):
+        cx = left + float(sides[:i].sum() + gaps[:i].sum()) + s / 2
+        h = float(s)
+        out.append(((cx, floor_y + h / 2, zc + float(rng.uniform(-0.02, 0.02))), (float(s), h, float(s))))
+    return out

@@ -9,8 +9,9 @@ Typical use::
     knife = plugins.tools.spec("knife")        # tools are data: a pasta.core.ToolSpec
     plugins.failures                           # plugins or components refused at load time
 
-Plugin authors implement the hooks of :mod:`pasta.plugins.hookspecs` with :data:`hookimpl`, check their
-work with :mod:`pasta.plugins.checks`, and reuse the contract tests of :mod:`pasta.plugins.testing`.
+Plugin authors implement the hooks of :mod:`pasta.plugins.hookspecs` with :data:`hookimpl` and test their
+plugins with :mod:`pasta.testing` (contract suites, conformance checkers, an analytic problem). This package
+holds only the hook specifications and the registry: it imports nothing of pasta but :mod:`pasta.core`.
 """
 
 from pasta.plugins.hookspecs import hookimpl, hookspec

@@ -2,7 +2,7 @@ import pytest
 import torch
 
 from pasta.core import CardinalityError, InputError, Plan, SkillSpec, enumerate_skeletons, kept_indices
-from pasta.plugins.analytic import ReferencePlanner, analytic_problem
+from pasta.testing import ReferencePlanner, analytic_problem
 
 CUT, PUSH, ROLL = SkillSpec("cut", 1, 2, "knife"), SkillSpec("push", 1, 1, "pusher"), SkillSpec("roll", 1, 1, "roller")
 

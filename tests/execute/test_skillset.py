@@ -7,8 +7,8 @@ import pytest
 from pasta.core.errors import ConfigError, MissingComponentError, PluginNotFoundError
 from pasta.execute.skillset import choose_skills, parse_skill_names
 from pasta.plugins import get_plugins
-from pasta.plugins.analytic import AnalyticPlugin
 from pasta.plugins.registry import discover
+from pasta.testing import AnalyticPlugin
 from pasta.weights import ROOT
 
 

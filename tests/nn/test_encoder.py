@@ -5,7 +5,7 @@ from pasta.core.errors import MissingComponentError
 from pasta.nn.config import PointVAEEncoderConfig
 from pasta.nn.encoders import FlatEncoder, PointVAEEncoder
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import check_encoder
+from pasta.testing import check_encoder
 
 
 def test_registered_encoder_loads_weights_and_conforms(vae_dir):

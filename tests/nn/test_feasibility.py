@@ -2,7 +2,7 @@ import torch
 
 from pasta.nn.feasibility import SetFeasibility
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import check_skill
+from pasta.testing import check_skill
 
 
 def test_permutation_and_translation_invariance():

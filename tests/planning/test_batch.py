@@ -8,7 +8,7 @@ import torch
 
 from pasta.core import CostModel, Skill, SkillSpec, kept_indices, min_cost_matching
 from pasta.planning.batch import evaluate, sample_candidates
-from pasta.plugins.analytic import AnalyticEncoder
+from pasta.testing import AnalyticEncoder
 
 
 class _RandomSkill(Skill):

@@ -10,7 +10,7 @@ from pasta.core import PlanningProblem
 from pasta.planning.batch import evaluate, sample_candidates
 from pasta.planning.clearance import Clearance, half_extents, path_penalty
 from pasta.planning.latent_rollout import build_plan, rollout
-from pasta.plugins.analytic import AnalyticCost, AnalyticEncoder, analytic_problem
+from pasta.testing import AnalyticCost, AnalyticEncoder, analytic_problem
 
 HALF = torch.tensor([[[0.05, 0.05]]])  # (B=1, 1, 2) half extents
 

@@ -11,8 +11,7 @@ from pasta.planning import search
 from pasta.planning.batch import sample_candidates, sequence_stream
 from pasta.planning.config import HalvingConfig
 from pasta.plugins import get_plugins
-from pasta.plugins.analytic import analytic_problem
-from pasta.plugins.checks import configured
+from pasta.testing import analytic_problem, configured
 
 SMALL = {"num_samples": 16, "iterations": 20}
 

@@ -13,7 +13,7 @@ from pasta.core import InputError
 from pasta.planning import search, sample_candidates
 from pasta.planning.attention import attention_structures
 from pasta.planning.config import HalvingConfig
-from pasta.plugins.analytic import analytic_problem
+from pasta.testing import analytic_problem
 
 from test_fixed_entities import crowded_problem  # the same crowded analytic problem
 

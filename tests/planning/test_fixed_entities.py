@@ -10,8 +10,15 @@ from pasta.core import InputError, PlanningProblem
 from pasta.core.matching import unchanged_pairs
 from pasta.planning import rollout, sample_candidates
 from pasta.plugins import get_plugins
-from pasta.plugins.analytic import OPTIMAL_SKELETON, AnalyticCost, AnalyticEncoder, analytic_problem, analytic_skills
-from pasta.plugins.checks import check_plan, configured
+from pasta.testing import (
+    OPTIMAL_SKELETON,
+    AnalyticCost,
+    AnalyticEncoder,
+    analytic_problem,
+    analytic_skills,
+    check_plan,
+    configured,
+)
 
 # pieces that sit at their goal already, away from the task's pieces (size, flatness, centroid)
 EXTRA = [[0.5, 0.0, 0.45, 0.05, 0.15], [0.7, 0.3, 0.6, 0.05, 0.85], [0.3, 0.0, 0.8, 0.05, 0.15], [0.5, 0.5, 0.15, 0.05, 0.85]]

@@ -13,7 +13,7 @@ from pasta.commands import plan as plan_cmd
 from pasta.core import Plan
 from pasta.core.errors import ConfigError, InputError
 from pasta.plugins import registry
-from pasta.plugins.analytic import AnalyticEncoder, AnalyticPlugin, analytic_problem
+from pasta.testing import AnalyticEncoder, AnalyticPlugin, analytic_problem
 
 
 @pytest.fixture

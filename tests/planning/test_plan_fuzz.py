@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from pasta.cli import main
 from pasta.plugins import registry
-from pasta.plugins.analytic import AnalyticEncoder, AnalyticPlugin, analytic_problem
+from pasta.testing import AnalyticEncoder, AnalyticPlugin, analytic_problem
 
 #: how each example corrupts a valid (obs or goal) cloud before it is written
 MUTATIONS = ["none", "none", "shift100", "shift_half", "nan", "inf", "few", "one", "empty", "flat2d", "dense",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pasta.plugins.testing import PlannerContract
+from pasta.testing import PlannerContract
 
 FAST = {"iterations": 100}
 

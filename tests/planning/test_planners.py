@@ -10,8 +10,7 @@ import torch
 from pasta.config import load_config, section
 from pasta.core import CardinalityError, Plan
 from pasta.plugins import get_plugins
-from pasta.plugins.analytic import OPTIMAL_SKELETON, analytic_problem
-from pasta.plugins.checks import check_plan, configured
+from pasta.testing import OPTIMAL_SKELETON, analytic_problem, check_plan, configured
 
 PLANNERS = ["exhaustive", "sampling", "receding_horizon"]
 

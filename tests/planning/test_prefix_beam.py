@@ -8,8 +8,7 @@ from pasta.config import load_config
 from pasta.core import check_skeleton
 from pasta.core.errors import ConfigError
 from pasta.plugins import get_plugins
-from pasta.plugins.analytic import analytic_problem
-from pasta.plugins.checks import configured
+from pasta.testing import analytic_problem, configured
 
 SMALL = {"num_samples": 16, "iterations": 20, "prefix_samples": 8, "prefix_iterations": 10}
 

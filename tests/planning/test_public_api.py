@@ -10,7 +10,7 @@ import torch
 
 import pasta.planning
 from pasta.core.errors import InputError
-from pasta.plugins.analytic import OPTIMAL_SKELETON, analytic_problem
+from pasta.testing import OPTIMAL_SKELETON, analytic_problem
 
 
 @pytest.mark.parametrize("name", pasta.planning.__all__)
@@ -48,7 +48,7 @@ def test_a_planner_from_the_public_helpers_returns_a_conforming_plan():
     """Random search written only with pasta.planning's exports (what the README walks through): the plan that
     build_plan packages is the best candidate the rollout scored, and it passes the plan checker."""
     from pasta.planning import attention_structures, build_plan, plan_score, rollout
-    from pasta.plugins.checks import check_plan
+    from pasta.testing import check_plan
 
     problem = analytic_problem()
     gen = torch.Generator().manual_seed(problem.seed)

@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from pasta.planning import LatentPlannerConfig, receding_search
-from pasta.plugins.analytic import analytic_problem
+from pasta.testing import analytic_problem
 
 CFG = LatentPlannerConfig(num_samples=16, iterations=20, clearance_weight=0.0)
 

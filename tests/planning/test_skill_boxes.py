@@ -12,8 +12,7 @@ import torch
 from pasta.planning import build_plan, sample_candidates
 from pasta.planning.batch import centroid_box, clamp_to_skill, training_boxes
 from pasta.plugins import get_plugins
-from pasta.plugins.analytic import analytic_problem
-from pasta.plugins.checks import configured
+from pasta.testing import analytic_problem, configured
 
 # the analytic encoder's box is (0.1, 0, 0.1)-(0.9, 0.2, 0.9); "move" sets pieces down higher up, as a lift
 # onto a raised board does

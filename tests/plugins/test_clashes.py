@@ -143,8 +143,8 @@ def pasta_register_tools(register):
 
 def test_tools_are_data(fresh_plugins):
     from pasta.core import PluginValidationError, ToolSpec
-    from pasta.plugins.analytic import AnalyticPlugin
     from pasta.plugins.registry import discover
+    from pasta.testing import AnalyticPlugin
 
     plugins = discover(extra={"analytic": AnalyticPlugin()})
     spec = plugins.tools.spec("blade")

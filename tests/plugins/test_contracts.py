@@ -4,10 +4,16 @@ import dataclasses
 
 import pytest
 
-from pasta.plugins.analytic import AnalyticPlugin, ReferencePlanner, ReferencePlannerConfig
-from pasta.plugins.checks import PluginConformanceError, check_planner
 from pasta.plugins.registry import discover
-from pasta.plugins.testing import PlannerContract, SkillContract
+from pasta.testing import (
+    AnalyticPlugin,
+    PlannerContract,
+    PluginConformanceError,
+    ReferencePlanner,
+    ReferencePlannerConfig,
+    SkillContract,
+    check_planner,
+)
 
 ANALYTIC = discover(extra={"analytic": AnalyticPlugin()})
 
@@ -38,7 +44,7 @@ class TestFlatten(AnalyticPlugins, SkillContract):
 
 
 def test_analytic_encoder_conforms():
-    from pasta.plugins.checks import check_encoder
+    from pasta.testing import check_encoder
 
     check_encoder(ANALYTIC.encoders.create("analytic"))
 

@@ -3,7 +3,7 @@
 import pytest
 
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import check_planner, check_skill, configured, small_budget
+from pasta.testing import check_planner, check_skill, configured, small_budget
 
 PLUGINS = get_plugins()
 

@@ -2,8 +2,8 @@ import pytest
 
 from pasta.core import Planner, PluginNotFoundError, PluginValidationError, SkillSpec
 from pasta.plugins import PluginInfo, get_plugins
-from pasta.plugins.analytic import AnalyticPlugin, MoveSkill
 from pasta.plugins.registry import discover
+from pasta.testing import AnalyticPlugin, MoveSkill
 
 BUILTIN_SKILLS = {"cut": (1, 2, "knife"), "push": (1, 1, "pusher"), "roll": (1, 1, "roller")}
 BUILTIN_PLANNERS = {"exhaustive", "prefix_beam", "receding_horizon", "sampling"}
@@ -44,10 +44,10 @@ def test_in_process_plugins_register_every_kind():
 
 
 def test_load_rejects_factory_not_honouring_contract():
-    bad_spec = PluginInfo("skill", "move", "pasta.plugins.analytic:MoveSkill", spec=SkillSpec("move", 2, 1, "hand"))
+    bad_spec = PluginInfo("skill", "move", "pasta.testing._analytic:MoveSkill", spec=SkillSpec("move", 2, 1, "hand"))
     with pytest.raises(PluginValidationError, match="differs from the registered"):
         bad_spec.load()
-    wrong_base = PluginInfo("planner", "x", "pasta.plugins.analytic:MoveSkill")
+    wrong_base = PluginInfo("planner", "x", "pasta.testing._analytic:MoveSkill")
     with pytest.raises(PluginValidationError, match="not a pasta.core.Planner subclass"):
         wrong_base.load()
     missing = PluginInfo("skill", "move", "pasta.plugins.nowhere:Nothing", spec=MoveSkill.spec, plugin="p", distribution="d")

@@ -7,7 +7,7 @@ import pytest
 
 from pasta.cli import main
 from pasta.plugins import PluginLoadWarning
-from pasta.plugins.checks import check_skill
+from pasta.testing import check_skill
 
 PINCH_MODULE = '''
 from dataclasses import dataclass

@@ -7,8 +7,8 @@ import pytest
 
 from pasta.core.decompose import decompose_labels
 from pasta.plugins import get_plugins
-from pasta.plugins.testing import SkillContract
 from pasta.tasks.executor import run_skill
+from pasta.testing import SkillContract
 
 
 class TestLift(SkillContract):

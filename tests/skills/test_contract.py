@@ -1,6 +1,6 @@
 """The plugin contract suites for the built-in skills."""
 
-from pasta.plugins.testing import SkillContract
+from pasta.testing import SkillContract
 
 
 class TestCut(SkillContract):

@@ -5,8 +5,8 @@ with the task's default settings), generated once into the task cache and read f
 import pytest
 
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import check_task
 from pasta.tasks import get_task
+from pasta.testing import check_task
 
 pytestmark = pytest.mark.sim
 

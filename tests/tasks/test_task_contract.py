@@ -11,10 +11,8 @@ import pytest
 from pasta.core import PluginValidationError, Task, TaskScore
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.plugins import PluginInfo, hookimpl
-from pasta.plugins.analytic import AnalyticPlugin
-from pasta.plugins.checks import PluginConformanceError, check_task
 from pasta.plugins.registry import discover
-from pasta.plugins.testing import TaskContract
+from pasta.testing import AnalyticPlugin, PluginConformanceError, TaskContract, check_task
 
 
 @dataclass
@@ -120,7 +118,7 @@ def test_check_task_names_what_is_wrong():
 
 
 def test_registry_requires_a_core_task_subclass():
-    not_a_task = PluginInfo("task", "toy", "pasta.plugins.analytic:MoveSkill")
+    not_a_task = PluginInfo("task", "toy", "pasta.testing._analytic:MoveSkill")
     with pytest.raises(PluginValidationError, match="not a pasta.core.Task subclass"):
         not_a_task.load()
     misnamed = PluginInfo("task", "other", f"{__name__}:ToyTask")

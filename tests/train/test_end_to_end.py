@@ -10,7 +10,7 @@ from pasta.core.errors import ConfigError
 from pasta.io.checkpoint import load_checkpoint
 from pasta.nn.loading import load_models
 from pasta.plugins import get_plugins
-from pasta.plugins.checks import check_encoder, check_skill
+from pasta.testing import check_encoder, check_skill
 from pasta.train.run import train
 
 

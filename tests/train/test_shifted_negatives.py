@@ -69,7 +69,7 @@ def test_one_entity_moves_and_the_others_stay():
 
 
 def _task(hard: int, shift: int = 0):
-    from pasta.plugins.analytic import AnalyticEncoder
+    from pasta.testing import AnalyticEncoder
     from pasta.train.feasibility import FeasibilityTask
 
     enc = AnalyticEncoder()

@@ -1,7 +1,7 @@
 """pasta-pinch's own tests: pasta's reusable contract suites, nothing else needed (`pytest` in this folder
 after `pip install -e .`)."""
 
-from pasta.plugins.testing import PlannerContract, SkillContract
+from pasta.testing import PlannerContract, SkillContract
 
 
 class TestPinch(SkillContract):

@@ -14,7 +14,7 @@ is ``split -> move (the 0.4 piece) -> flatten (the same piece)`` (:data:`OPTIMAL
 
 :class:`ReferencePlanner` solves it by brute force (every skeleton and attention structure, the
 cross-entropy method over sub-goal latents); it exists to exercise
-:class:`pasta.plugins.testing.PlannerContract` and is not meant for real problems.
+:class:`pasta.testing.PlannerContract` and is not meant for real problems.
 """
 
 from __future__ import annotations

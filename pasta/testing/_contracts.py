@@ -2,7 +2,7 @@
 
 A plugin package tests itself with a few lines::
 
-    from pasta.plugins.testing import SkillContract
+    from pasta.testing import PlannerContract, SkillContract, TaskContract
 
     class TestPinch(SkillContract):
         skill_name = "pinch"
@@ -14,10 +14,10 @@ A plugin package tests itself with a few lines::
     class TestMyTask(TaskContract):
         task_name = "stack"
 
-``PlannerContract`` runs the planner on the analytic problem of :mod:`pasta.plugins.analytic`, whose
-optimal skill sequence and attention are known. ``TaskContract`` makes one instance of the task (through
+``PlannerContract`` runs the planner on the analytic problem (:func:`pasta.testing.analytic_problem`),
+whose optimal skill sequence and attention are known. ``TaskContract`` makes one instance of the task (through
 ``task.instance``, so a task with a cache generates it once) and checks it with
-:func:`pasta.plugins.checks.check_task`; its tests run the simulator for built-in-style tasks, so mark the
+:func:`pasta.testing.check_task`; its tests run the simulator for built-in-style tasks, so mark the
 class ``@pytest.mark.sim`` where that matters.
 """
 
@@ -29,9 +29,9 @@ import numpy as np
 import pytest
 
 from pasta.core import Planner, Skill, SkillObservation, Task
-from pasta.plugins.analytic import OPTIMAL_SKELETON, analytic_problem
-from pasta.plugins.checks import check_plan, check_planner, check_skill, check_task, configured
 from pasta.plugins.registry import Plugins, get_plugins
+from pasta.testing._analytic import OPTIMAL_SKELETON, analytic_problem
+from pasta.testing._checks import check_plan, check_planner, check_skill, check_task, configured
 
 
 class SkillContract:

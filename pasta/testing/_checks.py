@@ -1,7 +1,7 @@
 """Conformance checkers for plugins (in the spirit of Gymnasium's ``check_env``).
 
 Each ``check_*`` raises :class:`PluginConformanceError` naming the first broken rule, and returns
-quietly otherwise. :mod:`pasta.plugins.testing` wraps them in pytest contract classes.
+quietly otherwise. The contract classes of :mod:`pasta.testing` wrap them for pytest.
 """
 
 from __future__ import annotations
@@ -139,7 +139,7 @@ def check_planner(planner: Planner, problem: PlanningProblem | None = None, *, n
     Also checks that ``plan.planner`` is ``name`` (default: the class's ``name``), and that the planner
     honours a given ``problem.skeleton`` (a sub-optimal one on the analytic problem) and records the seed.
     """
-    from pasta.plugins.analytic import analytic_problem
+    from pasta.testing._analytic import analytic_problem
 
     _require(isinstance(planner, Planner), f"{planner!r} is not a pasta.core.Planner")
     expected_name = name or getattr(type(planner), "name", None)
