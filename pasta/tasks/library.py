@@ -13,26 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pasta.demos.scene import SPREAD_X, crs_box, small_box
 from pasta.tasks.base import Generation, Task, TaskConfig
-
-SPREAD_X = (0.22, 0.32)
-HEIGHT = 0.08
-
-
-def crs_box(rng: np.random.Generator, floor: float, length: tuple[float, float] = (0.2, 0.35),
-            z_spread: float = 0.2) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-    """(centre, size) of the CRS dough: at the right end of the workspace, resting on the floor."""
-    length_ = rng.uniform(*length)
-    depth = rng.uniform(0.06, 0.08)
-    z = 0.5 + rng.uniform(-z_spread, z_spread)
-    return (0.9 - length_ / 2, floor + HEIGHT / 2, z), (length_, HEIGHT, depth)
-
-
-def small_box(rng: np.random.Generator, floor: float, x: tuple[float, float], z: tuple[float, float]):
-    """(centre, size) of a small piece like the one a cut leaves: x-length U(0.1, 0.12), depth U(0.06, 0.08)."""
-    size = (rng.uniform(0.1, 0.12), HEIGHT, rng.uniform(0.06, 0.08))
-    return (rng.uniform(*x), floor + HEIGHT / 2, rng.uniform(*z)), size
-
 
 def cut_params(gen: Generation, piece: int, offset: tuple[float, float], shift: tuple[float, float] | None = None) -> dict:
     """Cut ``offset`` (U range) from the piece's left end; the knife then travels ``shift`` to the left."""

@@ -28,6 +28,7 @@ import numpy as np
 
 from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
+from pasta.demos.scene import crs_box
 from pasta_skill_cut.plugin import SPEC, CutConfig
 from pasta_skill_cut.tool import KNIFE, KNIFE_HALF, KNIFE_PARK
 
@@ -400,8 +401,6 @@ class CutSkill(Skill):
         return CutController(self.config)
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
-        """The CRS dough (:func:`pasta.tasks.library.crs_box`): one long box at the right of the workspace,
+        """The CRS dough (:func:`pasta.demos.scene.crs_box`): one long box at the right of the workspace,
         0.2-0.35 long (``long``: 0.3-0.35)."""
-        from pasta.tasks.library import crs_box
-
         return [crs_box(rng, floor_y, length=(0.3, 0.35))] if variant == "long" else [crs_box(rng, floor_y)]

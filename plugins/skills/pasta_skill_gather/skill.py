@@ -21,6 +21,7 @@ import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
+from pasta.demos.scene import lumps
 from pasta_skill_gather.plugin import SPEC, GatherConfig
 from pasta_skill_gather.tool import FINGER_HALF, GRIPPER, GRIPPER_PARK
 
@@ -134,22 +135,5 @@ class GatherSkill(Skill):
         return GatherController(self.config)
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
-        """Three lumps in a row along x (see :func:`lumps`), right of the board (x 0.5-0.85)."""
+        """Three lumps in a row along x (:func:`pasta.demos.scene.lumps`), right of the board (x 0.5-0.85)."""
         return lumps(rng, floor_y, (0.6, 0.75), (0.4, 0.6))
-
-
-def lumps(rng: np.random.Generator, floor_y: float, x: tuple[float, float], z: tuple[float, float]) -> list:
-    """Three dough lumps ``[(centre, size)]`` in a row along x: sides U(0.04, 0.05) (height 0.04-0.05),
-    3.5-5 cm apart (more than DBSCAN's 3 cm: three entities), each shifted up to 2 cm in z; the row's
-    middle at x in ``x``, z in ``z``."""
-    sides = rng.uniform(0.04, 0.05, size=3)
-    gaps = rng.uniform(0.035, 0.05, size=2)
-    span = float(sides.sum() + gaps.sum())
-    left = float(rng.uniform(*x)) - span / 2
-    zc = float(rng.uniform(*z))
-    out = []
-    for i, s in enumerate(sides):
-        cx = left + float(sides[:i].sum() + gaps[:i].sum()) + s / 2
-        h = float(s)
-        out.append(((cx, floor_y + h / 2, zc + float(rng.uniform(-0.02, 0.02))), (float(s), h, float(s))))
-    return out

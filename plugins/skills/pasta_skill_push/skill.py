@@ -22,6 +22,7 @@ import numpy as np
 
 from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
+from pasta.demos.scene import HEIGHT, small_box
 from pasta_skill_push.plugin import SPEC, PushConfig
 from pasta_skill_push.tool import PUSHER, PUSHER_HALF, PUSHER_PARK, pusher_bounds
 
@@ -206,8 +207,6 @@ class PushSkill(Skill):
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
         """A small piece right of the spreading area (``"wide"``: a piece 0.1-0.25 long with x in 0.4-0.93)."""
-        from pasta.tasks.library import HEIGHT, small_box
-
         if variant == "wide":
             size = (rng.uniform(0.1, 0.25), HEIGHT, rng.uniform(0.06, 0.1))
             x = rng.uniform(0.4, 0.93 - size[0] / 2)

@@ -25,6 +25,7 @@ import numpy as np
 
 from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
+from pasta.demos.scene import SPREAD_X, small_box
 from pasta_skill_roll.plugin import SPEC, RollConfig
 from pasta_skill_roll.tool import ROLLER, ROLLER_PARK, ROLLER_RADIUS
 
@@ -211,8 +212,6 @@ class RollSkill(Skill):
 
             side = float(rng.uniform(0.055, 0.07))
             return [((float(rng.uniform(0.25, 0.33)), BOARD_TOP + side / 2, float(rng.uniform(0.42, 0.58))), (side,) * 3)]
-        from pasta.tasks.library import SPREAD_X, small_box
-
         if variant == "pieces":  # crs_twice rolls pieces 0.08-0.15 deep (pushed sideways) at z 0.28-0.74
             size = (float(rng.uniform(0.09, 0.135)), float(rng.uniform(0.07, 0.08)), float(rng.uniform(0.07, 0.15)))
             z = float(rng.uniform(0.2 + size[2] / 2, 0.8 - size[2] / 2))

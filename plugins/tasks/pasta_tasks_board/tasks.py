@@ -24,8 +24,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from pasta.demos.scene import lumps
 from pasta.tasks.base import SCORING_FIELDS, Generation, Score, Task, TaskConfig, TaskInstance
-from pasta_skill_gather.skill import lumps
 from pasta_skill_lift.tool import BOARD_POSE, BOARD_TOP
 
 
