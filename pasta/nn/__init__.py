@@ -7,7 +7,7 @@ Importing this package is cheap; torch is imported by the submodules:
 - :mod:`pasta.nn.feasibility`: :class:`~pasta.nn.feasibility.SetFeasibility`, one per skill;
 - :mod:`pasta.nn.cost`: :class:`~pasta.nn.cost.PairCost` and the ``set_cost`` :class:`~pasta.core.CostModel`;
 - :mod:`pasta.nn.loading`: load trained modules from a models directory and attach them to skills;
-- :mod:`pasta.nn.plugin`: the entry-point module registering the plugins (imports no torch).
+- the plugin package ``pasta_models`` (``plugins/models``) registers the encoders and the cost model.
 
 Models directory layout (written by ``pasta train``)::
 

@@ -1,5 +1,6 @@
-"""Tasks (seeded initial-state/goal generators with ground-truth skill chains), the skill-step
-executor shared by generation, demonstrations, the oracle and plan execution, and the oracle.
+"""Task machinery: the Task base (seeded initial-state/goal generators with ground-truth skill chains),
+the skill-step executor shared by generation, demonstrations, the oracle and plan execution, and the
+oracle. The tasks themselves are plugins (``plugins/tasks``), found through the registry.
 
     from pasta.tasks import get_task, run_skill
     task = get_task("crs")

@@ -9,7 +9,7 @@ from pasta.cli import main
 from pasta.commands.eval import result_path
 from pasta.core.errors import ConfigError
 from pasta.tasks import get_task, split_task_settings
-from pasta.tasks.library import DISTRACTOR_GAP, MAX_DISTRACTORS, distractor_boxes
+from pasta_tasks_crs.tasks import DISTRACTOR_GAP, MAX_DISTRACTORS, distractor_boxes
 
 
 def test_settings_are_split_from_the_other_keys():

@@ -1,4 +1,4 @@
-"""Registers the built-in tasks (metadata only: the task classes load when a task is built)."""
+"""Registers the built-in CRS-family tasks (metadata only: the task classes load when a task is built)."""
 
 from pasta.plugins import hookimpl
 
@@ -16,7 +16,7 @@ _TASKS = {
 
 @hookimpl
 def pasta_register_tasks(register):
-    from pasta.tasks import library
+    from pasta_tasks_crs import tasks
 
     for name, (factory, config, summary) in _TASKS.items():
-        register(name=name, factory=f"pasta.tasks.library:{factory}", config=getattr(library, config), summary=summary)
+        register(name=name, factory=f"pasta_tasks_crs.tasks:{factory}", config=getattr(tasks, config), summary=summary)

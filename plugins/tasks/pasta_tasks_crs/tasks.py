@@ -1,4 +1,4 @@
-"""The built-in tasks: single-skill cut / push / roll, cut_rearrange, crs, crs_twice, crs_distractors.
+"""The built-in CRS-family tasks: single-skill cut / push / roll, cut_rearrange, crs, crs_twice, crs_distractors.
 
 Geometry (unit cube, y up; the floor is where the simulator rests dough): the CRS dough is a box of
 length (x) U(0.2, 0.35), height 0.08, depth (z) U(0.06, 0.08) resting at the right (centre

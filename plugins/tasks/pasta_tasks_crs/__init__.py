@@ -1,0 +1,1 @@
+"""The built-in tasks of the CRS family: single-skill cut / push / roll, cut_rearrange, crs, crs_twice, crs_distractors."""
