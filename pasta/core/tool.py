@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import KW_ONLY, dataclass
+from dataclasses import KW_ONLY, dataclass, field
 from typing import ClassVar
 
 from pasta.core.errors import PluginValidationError
@@ -236,6 +236,11 @@ class ToolSpec:
         required_action: how many leading components an action must have (the rest are optional and
             default to 0); ``None`` means all.
         park: where the tool waits, centre (3,), yaw 0; also its pose after ``reset``.
+        stand: where tasks and demonstration scenes stand the tool, centre (3,), yaw 0 (a static obstacle
+            such as the raised board: :attr:`stand_top` is its top); ``None``: nowhere in particular. Other
+            plugins find it here through the registry instead of importing the plugin that registers it.
+            Left out of ``repr``: task cache keys hash the repr of the tools a chain uses, and declaring
+            where a tool stands changes no generated instance.
         min_height: lowest allowed centre height y; ``None``: the geometry's lowest point may reach y = 0.
         friction: Coulomb friction of dough against the tool (``SimConfig.tool_friction`` overrides it).
         surface_points: (T, 3) observed points in the tool frame; ``None``: generated from the primitives.
@@ -249,6 +254,7 @@ class ToolSpec:
     action: tuple[ActionChannel, ...] = ()
     required_action: int | None = None
     park: Vec3 | None = None
+    stand: Vec3 | None = field(default=None, repr=False)
     min_height: float | None = None
     friction: float = 0.0
     surface_points: tuple[Vec3, ...] | None = None
@@ -268,9 +274,9 @@ class ToolSpec:
             raise PluginValidationError(f"{where}: primitives must be a tuple of pasta.core.tool primitives")
         prims = tuple(self.primitives)
         if not prims:  # a name only: nothing else may be set
-            if self.action or self.park is not None or self.surface_points is not None:
+            if self.action or self.park is not None or self.stand is not None or self.surface_points is not None:
                 raise PluginValidationError(
-                    f"{where}: has no primitives (a name-only tool) but sets action, park or surface_points; "
+                    f"{where}: has no primitives (a name-only tool) but sets action, park, stand or surface_points; "
                     "give it geometry (primitives=(Box(half=...), ...)) to simulate it")
             object.__setattr__(self, "primitives", ())
             object.__setattr__(self, "action", ())
@@ -323,6 +329,11 @@ class ToolSpec:
         if not all(0.0 < v < 1.0 for v in park):
             raise PluginValidationError(f"{where}: park {park} must lie inside the unit-cube workspace")
         object.__setattr__(self, "park", park)
+        if self.stand is not None:
+            stand = _vec(self.stand, 3, f"{where}: stand")
+            if not all(0.0 < v < 1.0 for v in stand):
+                raise PluginValidationError(f"{where}: stand {stand} must lie inside the unit-cube workspace")
+            object.__setattr__(self, "stand", stand)
         if self.min_height is not None:
             object.__setattr__(self, "min_height", _number(self.min_height, f"{where}: min_height"))
         object.__setattr__(self, "friction", _number(self.friction, f"{where}: friction", nonneg=True))
@@ -396,6 +407,14 @@ class ToolSpec:
         if self.min_height is not None:
             return self.min_height
         return -self.extent()[0][1]
+
+    @property
+    def stand_top(self) -> float:
+        """Height y of the tool's top where it stands (:attr:`stand`); PluginValidationError naming the tool
+        when it has no stand pose."""
+        if self.stand is None:
+            raise PluginValidationError(f"tool '{self.name}' has no stand pose (ToolSpec.stand)")
+        return self.stand[1] + self.extent()[1][1]
 
     @property
     def bound_radius(self) -> float:

@@ -53,6 +53,20 @@ def test_toolspec_validation_names_tool_and_field():
     assert ToolSpec("name_only").simulated is False  # analytic plugins: a name, nothing simulated
 
 
+def test_stand_pose_is_checked_and_left_out_of_the_repr():
+    board = ToolSpec("b", primitives=(Box(half=(0.15, 0.025, 0.16)),), park=(0.3, 0.9, 0.5), stand=(0.3, 0.045, 0.5))
+    assert board.stand == (0.3, 0.045, 0.5) and board.stand_top == pytest.approx(0.07)
+    # task cache keys hash the repr of the tools: declaring a stand pose must not change them
+    assert "stand" not in repr(board)
+    assert repr(board) == repr(ToolSpec("b", primitives=(Box(half=(0.15, 0.025, 0.16)),), park=(0.3, 0.9, 0.5)))
+    with pytest.raises(PluginValidationError, match="tool 'b': stand .* inside the unit-cube"):
+        ToolSpec("b", primitives=(Box(half=(0.1, 0.1, 0.1)),), park=(0.5, 0.5, 0.5), stand=(0.3, 1.5, 0.5))
+    with pytest.raises(PluginValidationError, match="name-only tool.*stand"):
+        ToolSpec("b", stand=(0.3, 0.1, 0.5))
+    with pytest.raises(PluginValidationError, match="tool 'k' has no stand pose"):
+        ToolSpec("k", primitives=(Box(half=(0.1, 0.1, 0.1)),), park=(0.5, 0.5, 0.5)).stand_top
+
+
 def test_builtin_tools_are_registered_with_their_skills():
     tools = {t.name: t for t in registered_tools()}
     assert {"knife", "pusher", "roller"} <= set(tools)

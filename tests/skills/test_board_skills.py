@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pasta.core.decompose import decompose_labels
+from pasta.core.errors import ConfigError
 from pasta.plugins import get_plugins
 from pasta.tasks.executor import run_skill
 from pasta.testing import SkillContract
@@ -24,6 +25,25 @@ def test_board_and_gripper_are_registered_tools():
     assert tools.info("board").spec.is_static
     assert tools.info("spatula").spec.channels == ("x", "y", "z")
     assert tools.info("gripper").spec.finger_pair is not None
+
+
+def test_other_plugins_find_the_board_through_the_registry():
+    """The roll skill and the board tasks read where the board stands from its registered spec
+    (ToolSpec.stand), not from the lift package: the same numbers, to the bit, as the lift package's own."""
+    from pasta.core import ToolPose
+    from pasta.demos.scene import standing_tool
+    from pasta_skill_lift.tool import BOARD_POSE, BOARD_TOP
+
+    board = standing_tool("board")
+    assert board.stand == BOARD_POSE and board.stand_top == BOARD_TOP
+    roll = get_plugins().skills.create("roll")
+    assert roll.demo_tools("board") == {"board": ToolPose(BOARD_POSE, 0.0)} and roll.demo_tools() == {}
+    (centre, size), = roll.demo_scene(np.random.default_rng(0), 0.02, "board")
+    assert centre[1] - size[1] / 2 == pytest.approx(BOARD_TOP)  # the cube rests on the board's top
+    with pytest.raises(ConfigError, match="tool 'bord' is not registered; did you mean 'board'"):
+        standing_tool("bord")
+    with pytest.raises(ConfigError, match="tool 'knife' .* has no stand pose"):
+        standing_tool("knife")
 
 
 @pytest.fixture(scope="module")

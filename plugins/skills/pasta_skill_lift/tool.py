@@ -2,8 +2,10 @@
 
 Spatula: a flat plate 0.14 x 0.03 x 0.14 (a thin box, friction 50 as in the PASTA release) moved in
 x, y, z (0.01 per env step at 1). Board: a box 0.3 (x) x 0.05 (y) x 0.32 (z) without action channels;
-tasks put it at :data:`BOARD_POSE` (top at y = :data:`BOARD_TOP`, over the left of the workspace), and
-it waits at its parking place, high above the dough, everywhere else.
+tasks put it at :data:`BOARD_POSE` (its registered stand pose, ``ToolSpec.stand``: top at y =
+:data:`BOARD_TOP`, over the left of the workspace), and it waits at its parking place, high above the
+dough, everywhere else. Other plugins (the roll skill, the board tasks) read the pose from the
+registered spec, not from this module.
 
 The simulator's tools are kinematic and do not collide with each other: the spatula sets the dough down
 by sinking through the board's top (the kinematic stand-in for tilting the dough off; the board's
@@ -51,6 +53,7 @@ BOARD = ToolSpec(
     description="a raised cutting board (static obstacle, placed by tasks)",
     primitives=(Box(half=BOARD_HALF),),
     park=BOARD_PARK,
+    stand=BOARD_POSE,
     friction=2.0,  # as the floor's spreading area (raising it to 10 changed no roll on the board)
     color="tan",
 )

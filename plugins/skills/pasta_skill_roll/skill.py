@@ -25,7 +25,7 @@ import numpy as np
 
 from pasta.core import Controller, DemoVariant, InputError, Skill, SkillObservation, ToolPose
 from pasta.core.shapes import as_points
-from pasta.demos.scene import SPREAD_X, small_box
+from pasta.demos.scene import SPREAD_X, small_box, standing_tool
 from pasta_skill_roll.plugin import SPEC, RollConfig
 from pasta_skill_roll.tool import ROLLER, ROLLER_PARK, ROLLER_RADIUS
 
@@ -208,10 +208,9 @@ class RollSkill(Skill):
         resting on the board's top (:meth:`demo_tools`), where LiftSpread rolls; ``pieces``: a piece shaped as
         cutting and pushing leave them (up to 0.15 deep), anywhere in z 0.2-0.8."""
         if variant == "board":
-            from pasta_skill_lift.tool import BOARD_TOP
-
+            top = standing_tool("board").stand_top
             side = float(rng.uniform(0.055, 0.07))
-            return [((float(rng.uniform(0.25, 0.33)), BOARD_TOP + side / 2, float(rng.uniform(0.42, 0.58))), (side,) * 3)]
+            return [((float(rng.uniform(0.25, 0.33)), top + side / 2, float(rng.uniform(0.42, 0.58))), (side,) * 3)]
         if variant == "pieces":  # crs_twice rolls pieces 0.08-0.15 deep (pushed sideways) at z 0.28-0.74
             size = (float(rng.uniform(0.09, 0.135)), float(rng.uniform(0.07, 0.08)), float(rng.uniform(0.07, 0.15)))
             z = float(rng.uniform(0.2 + size[2] / 2, 0.8 - size[2] / 2))
@@ -219,10 +218,8 @@ class RollSkill(Skill):
         return [small_box(rng, floor_y, SPREAD_X, (0.3, 0.7))]
 
     def demo_tools(self, variant: str = "default") -> dict[str, ToolPose]:
-        """The lift package's board at its task pose for the ``board`` variant (needs that package's
-        ``board`` tool registered); none otherwise."""
+        """The registered ``board`` tool at its stand pose (``ToolSpec.stand``; the lift package registers
+        it) for the ``board`` variant; none otherwise."""
         if variant != "board":
             return {}
-        from pasta_skill_lift.tool import BOARD_POSE
-
-        return {"board": ToolPose(BOARD_POSE, 0.0)}
+        return {"board": ToolPose(standing_tool("board").stand, 0.0)}

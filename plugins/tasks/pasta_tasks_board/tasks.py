@@ -1,7 +1,7 @@
 """LiftSpread and GatherMove (the paper's DiffSkill tasks, horizon 2 each), on the raised cutting board.
 
-The board (a static tool of the lift skill package) is put at ``BOARD_POSE`` (x 0.15-0.45, z 0.34-0.66,
-top at y 0.07) after the dough has settled, and stays there for the whole episode (it is part of the
+The board (a static tool the lift skill package registers) is put at its stand pose (``ToolSpec.stand``:
+x 0.15-0.45, z 0.34-0.66, top at y 0.07) after the dough has settled, and stays there for the whole episode (it is part of the
 initial simulator state). Every goal is the state the ground-truth chain of scripted experts reaches
 with the random parameters drawn here:
 
@@ -24,20 +24,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from pasta.demos.scene import lumps
+from pasta.demos.scene import lumps, standing_tool
 from pasta.tasks.base import SCORING_FIELDS, Generation, Score, Task, TaskConfig, TaskInstance
-from pasta_skill_lift.tool import BOARD_POSE, BOARD_TOP
 
 
 def place_board(gen: Generation) -> None:
-    """Put the board at its task pose and take the initial state again (the board is part of it)."""
-    gen.sim.set_tool_pose("board", BOARD_POSE)
+    """Put the board at its stand pose and take the initial state again (the board is part of it)."""
+    gen.sim.set_tool_pose("board", standing_tool("board").stand)
     gen.init = gen.sim.get_state()
 
 
 def lift_target(gen: Generation, x: tuple[float, float], z: tuple[float, float]) -> dict[str, float]:
     """Lift expert parameters: a centroid target uniform in ``x`` by ``z``, set down on the board's top."""
-    return {"target_x": float(gen.rng.uniform(*x)), "target_z": float(gen.rng.uniform(*z)), "surface_y": BOARD_TOP}
+    return {"target_x": float(gen.rng.uniform(*x)), "target_z": float(gen.rng.uniform(*z)),
+            "surface_y": standing_tool("board").stand_top}
 
 
 def roll_params(gen: Generation, side: float, cfg: LiftSpreadConfig) -> dict[str, float]:
