@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from pasta.plugins import get_plugins
 from pasta.sim import SimConfig, Simulator, crs_dough
 
 
@@ -78,7 +79,7 @@ def main() -> None:
     args = ap.parse_args()
     cfg = SimConfig(max_particles=max(10000, max(args.particles)))
     t0 = time.perf_counter()
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     sim.reset(crs_dough(1000, 0, floor_y=sim.floor_y), seed=0)
     sim.step()
     print(f"tools: {', '.join(sim.tool_names)}")

@@ -333,11 +333,12 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
         say(f"verify: cannot verify, the run has no {ACTIONS} topic")
         return False, math.inf
 
+    from pasta.plugins import get_plugins
     from pasta.sim import SimConfig, Simulator, SimState  # lazy: only verify needs the simulator
 
     cfg = logged_sim_config(reader)
     state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     sim.set_state(state)
     n_steps = 0
     for _t, msg in reader.messages(ACTIONS):

@@ -219,6 +219,10 @@ class Plugins:
     def tasks(self) -> Registry:
         return self.registries["task"]
 
+    def simulated_tools(self) -> list[ToolSpec]:
+        """Every registered tool that has geometry (what a ``pasta.sim.Simulator`` can hold), in registry order."""
+        return [info.spec for info in self.tools if info.spec.simulated]
+
 
 def discover(group: str = ENTRY_POINT_GROUP, extra: dict[str, Any] | None = None) -> Plugins:
     """Load every plugin of the entry-point ``group`` (plus ``extra`` in-process plugin objects by name).

@@ -165,7 +165,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from pasta.sim import SimConfig, Simulator
 
     sim_kw = json.loads(args["sim"]) if "sim" in args else {}
-    sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
+    sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}),
+                    tools=get_plugins().simulated_tools())
     from pasta.demos.generate import skill_config
 
     scene = args.get("scene", "default")

@@ -231,7 +231,7 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
         from pasta.sim import SimConfig, Simulator
 
         sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points, n_grid=cfg.n_grid,
-                                  max_particles=max(cfg.max_particles, cfg.n_particles)))
+                                  max_particles=max(cfg.max_particles, cfg.n_particles)), tools=get_plugins().simulated_tools())
     sk = get_plugins().skills.create(skill)
     kw: dict[str, Any] = {"start_step": cfg.start_step} if cfg.start_step >= 0 else {}
     if not cfg.reset:
@@ -305,7 +305,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     if sim_kw is not None:
         from pasta.sim import SimConfig, Simulator
 
-        sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}))
+        from pasta.plugins import get_plugins
+
+        sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}),
+                        tools=get_plugins().simulated_tools())
     if "reset" in args:
         args["reset"] = "false" if args["reset"] in ("0", "false", "off") else "true"
     if "write" in args:

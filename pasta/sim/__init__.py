@@ -7,7 +7,7 @@ from .config import RUNTIME_PARAMS, SimConfig
 from .render import render_png
 from .scene import FLOOR_Y, box_particles, crs_dough, sphere_particles
 from .simulator import Observation, SimState, SimulationDiverged, Simulator
-from .tools import MAX_TOOLS, ToolTable, registered_tools
+from .tools import MAX_TOOLS, ToolTable
 
 __all__ = [
     "FLOOR_Y",
@@ -21,7 +21,6 @@ __all__ = [
     "ToolTable",
     "box_particles",
     "crs_dough",
-    "registered_tools",
     "render_png",
     "sphere_particles",
 ]

@@ -10,15 +10,9 @@ import numpy as np
 _PALETTE = ("tab:red", "tab:green", "tab:purple", "tab:blue", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
 
 
-def _tool_colors(names) -> dict[str, str]:
-    """{tool name: colour}: the registered ToolSpec.color where there is one, else the palette in turn."""
-    try:
-        from pasta.plugins import get_plugins
-
-        reg = get_plugins().tools
-        given = {n: reg.info(n).spec.color for n in names if n in reg}
-    except Exception:  # pictures must not fail on a plugin problem; fall back to the palette
-        given = {}
+def _tool_colors(names, given) -> dict[str, str]:
+    """{tool name: colour}: ``given`` where it names one, else the palette in turn."""
+    given = dict(given or {})
     out, i = {}, 0
     for n in names:
         if given.get(n):
@@ -30,11 +24,12 @@ def _tool_colors(names) -> dict[str, str]:
 
 
 def render_png(path, dough_points, tool_points=None, goal_points=None, title: str | None = None,
-               labels=None) -> Path:
+               labels=None, colors=None) -> Path:
     """Write a PNG with a top view (x-z) and a side view (x-y) of the workspace.
 
     dough_points: (N, 3); tool_points: (T, 3) or {name: (T, 3)}; goal_points: (G, 3) drawn faint;
-    labels: optional (N,) ints colouring the dough (e.g. DBSCAN clusters). Returns the path.
+    labels: optional (N,) ints colouring the dough (e.g. DBSCAN clusters); colors: {tool name: matplotlib
+    colour} (e.g. each ToolSpec.color), the others take a palette in turn. Returns the path.
     """
     import matplotlib
 
@@ -44,7 +39,7 @@ def render_png(path, dough_points, tool_points=None, goal_points=None, title: st
     d = np.asarray(dough_points, dtype=float).reshape(-1, 3)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.6))
     tools = tool_points if isinstance(tool_points, dict) else ({"tool": tool_points} if tool_points is not None else {})
-    colors = _tool_colors(list(tools))
+    colors = _tool_colors(list(tools), colors)
     views = [(0, 2, "top view (x-z)", "z", (0.2, 0.8)), (0, 1, "side view (x-y)", "y", (0.0, 0.3))]
     for ax, (a, b, name, yl, ylim) in zip(axes, views):
         if goal_points is not None:

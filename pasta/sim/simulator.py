@@ -13,7 +13,7 @@ from pasta.core.errors import ConfigError, InputError, SimulationError
 from pasta.core.tool import ToolSpec
 
 from .config import RUNTIME_PARAMS, SimConfig, check_params
-from .tools import STATE_COLS, ToolTable, registered_tools, tool_quat
+from .tools import STATE_COLS, ToolTable, tool_quat
 
 #: floor height (y) where resting dough bottoms sit, as a fraction of dx (0.02 at the 64^3 grid)
 FLOOR_DX = 1.28
@@ -102,9 +102,9 @@ class Simulator:
 
     Args:
         cfg: the settings (defaults when ``None``).
-        tools: the tools, a sequence of :class:`~pasta.core.ToolSpec` (at most ``MAX_TOOLS``); ``None``:
-            every registered tool that has geometry (``pasta_register_tools``), in registry order. Tools
-            act on the dough one after the other in this order.
+        tools: the tools, a sequence of :class:`~pasta.core.ToolSpec` (at most ``MAX_TOOLS``), acting on the
+            dough one after the other in this order. The caller chooses them (every registered tool with
+            geometry: ``pasta.plugins.get_plugins().simulated_tools()``): the simulator knows no registry.
         seed: seed of the observed particle subset (default ``cfg.seed``).
 
     Several Simulators with the same (n_grid, max_particles) share one set of Taichi fields and
@@ -112,15 +112,14 @@ class Simulator:
     when used in turn.
     """
 
-    def __init__(self, cfg: SimConfig | None = None, tools: Sequence[ToolSpec] | None = None, *,
-                 seed: int | None = None) -> None:
+    def __init__(self, cfg: SimConfig | None = None, *, tools: Sequence[ToolSpec], seed: int | None = None) -> None:
         self.cfg = cfg = cfg if cfg is not None else SimConfig()
         if not isinstance(cfg, SimConfig):
             raise ConfigError(f"Simulator needs a SimConfig, got {type(cfg).__name__}")
         self.seed = cfg.seed if seed is None else int(seed)
         self._params = {k: float(getattr(cfg, k)) for k in RUNTIME_PARAMS}
         self.dx = 1.0 / cfg.n_grid
-        self._table = ToolTable(registered_tools() if tools is None else list(tools), cfg.tool_friction, self.dx)
+        self._table = ToolTable(list(tools), cfg.tool_friction, self.dx)
         self._eng = _get_engine(cfg)
         self.floor_y = FLOOR_DX * self.dx
         self._tools = {name: self._table.park_row(name) for name in self._table.names}

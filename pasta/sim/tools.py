@@ -31,14 +31,6 @@ BOUND_MARGIN = 0.03
 STATE_COLS = ("x", "y", "z", "yaw", "spin", "aperture")
 
 
-def registered_tools() -> list[ToolSpec]:
-    """Every registered tool that has geometry, in registry order."""
-    from pasta.plugins import get_plugins
-
-    reg = get_plugins().tools
-    return [reg.info(n).spec for n in reg.names() if reg.info(n).spec.simulated]
-
-
 def yaw_quat(yaw: float) -> np.ndarray:
     """Quaternion (w, x, y, z) of a rotation by ``yaw`` about +y."""
     return np.array([math.cos(yaw / 2), 0.0, math.sin(yaw / 2), 0.0])

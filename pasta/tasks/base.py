@@ -240,9 +240,11 @@ class Task(TaskInterface):
         return self._skills[name]
 
     def make_sim(self) -> Any:
+        """A simulator of :attr:`sim_config` with every registered tool that has geometry."""
+        from pasta.plugins import get_plugins
         from pasta.sim import Simulator
 
-        return Simulator(self.sim_config)
+        return Simulator(self.sim_config, tools=get_plugins().simulated_tools())
 
     def key(self) -> str:
         """Hash of everything that changes a generated instance besides the seed."""

@@ -8,6 +8,7 @@ import torch
 
 from pasta.core.plan import Plan, PlanStep, as_latents
 from pasta.execute import ExecuteConfig, attend, execute_plan
+from pasta.plugins import get_plugins
 
 
 def test_attend_first_step_by_index_later_by_nearest_centroid():
@@ -28,7 +29,7 @@ def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path, nudge, 
     from pasta.sim import SimConfig, Simulator, crs_dough
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     obs = sim.reset(crs_dough(cfg.n_particles, rng=3, floor_y=sim.floor_y, length=0.2))
     center = obs.dough.mean(0).tolist()
     goal = obs.dough - np.array([0.03, 0.0, 0.0], np.float32)
@@ -61,7 +62,7 @@ def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
     from pasta.sim import SimConfig, Simulator, crs_dough
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
     torch.manual_seed(0)
     net = PolicyNet(PolicyConfig(action_dim=4, dough_points=64, tool_points=20, goal_points=64, head_widths=(16,),
@@ -79,7 +80,7 @@ def test_skip_near_skips_a_watched_step_whose_piece_is_at_its_goal(nudge, box_en
     from pasta.sim import SimConfig, Simulator, crs_dough
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     steps = {}
     for skip in (False, True):
         obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
@@ -108,7 +109,7 @@ def test_skip_near_never_skips_a_step_that_changes_the_piece_count(nudge, box_en
         spec = SkillSpec("halve", 1, 2, "pusher", "test skill")
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     skipped = {}
     for skill, outputs in ((nudge, 1), (Halve(), 2)):
         obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
@@ -216,7 +217,7 @@ def test_executor_retries_a_step_that_hit_its_step_limit(nudge, box_encoder, one
             return Forever()
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     runs = {}
     for retries in (0, 1):
         obs = sim.reset(crs_dough(cfg.n_particles, rng=3, floor_y=sim.floor_y, length=0.2))

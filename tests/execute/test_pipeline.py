@@ -8,6 +8,7 @@ from pasta.config.overrides import build
 from pasta.execute import ExecuteConfig
 from pasta.core.errors import ConfigError
 from pasta.core.plan import Plan, PlanStep, as_latents
+from pasta.plugins import get_plugins
 
 
 def test_split_overrides():
@@ -51,7 +52,7 @@ def closed_loop_episode(planner, nudge, box_encoder):
     from pasta.sim import SimConfig, Simulator, crs_dough
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=5)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     obs = sim.reset(crs_dough(cfg.n_particles, rng=5, floor_y=sim.floor_y, length=0.2))
     return run_episode(sim, obs.dough - np.array([0.03, 0, 0], np.float32), planner=planner, skills=[nudge],
                        encoder=box_encoder, cost=ZeroCost(), horizon=2, seed=0,

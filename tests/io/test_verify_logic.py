@@ -39,7 +39,7 @@ class FakeState:
 class FakeSim:
     """x moves by gain * action of the posed tool; parked tools do nothing; teleports are logged."""
 
-    def __init__(self, cfg):
+    def __init__(self, cfg, *, tools=()):
         self.cfg, self.x, self.tools, self.events = cfg, None, {}, []
 
     def set_state(self, s):

@@ -9,6 +9,7 @@ import pytest
 
 from pasta.io import RunLogger, RunReader, ToolPrimitive, step_time_ns
 from pasta.io import replay
+from pasta.plugins import get_plugins
 
 pytestmark = pytest.mark.sim
 
@@ -23,7 +24,7 @@ def _knife_episode(path, n_steps=7, final_attachment=True):
     from pasta.sim import SimConfig, Simulator, crs_dough
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=7)
-    sim = Simulator(cfg)
+    sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     sim.reset(crs_dough(cfg.n_particles, rng=7, floor_y=sim.floor_y))
     env_dt = cfg.dt * cfg.substeps
     with RunLogger(path, metadata={"seed": str(cfg.seed), "skill": "cut"}) as log:

@@ -92,7 +92,7 @@ def test_demos_training_planning_and_execution(pinch_installed, tmp_path):
 
     # execute the planned step with the skill's heuristic controller in the simulator: two pieces -> one
     skill = pinch_installed.skills.create("pinch")
-    sim = Simulator(SimConfig(n_particles=3000, obs_points=600))
+    sim = Simulator(SimConfig(n_particles=3000, obs_points=600), tools=pinch_installed.simulated_tools())
     rng = np.random.default_rng(0)
     sim.reset(scene_particles(skill.demo_scene(rng, sim.floor_y), 3000, rng)[0], seed=0)
     for _ in range(5):

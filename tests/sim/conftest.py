@@ -7,12 +7,13 @@ import os
 import numpy as np
 import pytest
 
+from pasta.plugins import get_plugins
 from pasta.sim import SimConfig, Simulator, crs_dough, render_png
 
 
 @pytest.fixture(scope="session")
 def sim() -> Simulator:
-    return Simulator(SimConfig(n_particles=3000, max_particles=10000))
+    return Simulator(SimConfig(n_particles=3000, max_particles=10000), tools=get_plugins().simulated_tools())
 
 
 @pytest.fixture
@@ -42,7 +43,8 @@ def snapshot(sim: Simulator, name: str, title: str = "") -> None:
     out = os.environ.get("PASTA_SIM_PNG_DIR")
     if out:
         o = sim.observe()
-        render_png(os.path.join(out, f"{name}.png"), o.dough, o.tool_points, title=f"{name} {title}")
+        render_png(os.path.join(out, f"{name}.png"), o.dough, o.tool_points, title=f"{name} {title}",
+                   colors={t: sim.tool_spec(t).color for t in sim.tool_names})
 
 
 @pytest.fixture(scope="session")

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from pasta.core.errors import ConfigError
+from pasta.plugins import get_plugins
 from pasta.sim import (
     SimConfig,
     SimState,
@@ -208,7 +209,7 @@ def test_runtime_params_and_second_simulator(fresh, helpers):
     sim.step()
     assert sim.params["yield_stress"] == 200.0
     # a second simulator with the same layout shares kernels; states do not mix
-    other = Simulator(SimConfig(n_particles=3000, max_particles=10000), seed=1)
+    other = Simulator(SimConfig(n_particles=3000, max_particles=10000), tools=get_plugins().simulated_tools(), seed=1)
     other.reset(box_particles((0.3, 0.06, 0.5), (0.1, 0.08, 0.08), 500, 0))
     x_main = sim.particles().copy()
     other.step()

@@ -7,7 +7,8 @@ import pytest
 
 from pasta.core.errors import ConfigError, InputError, PluginValidationError
 from pasta.core.tool import ActionChannel, Box, Capsule, FingerPair, ToolSpec, WedgeBlade
-from pasta.sim import SimConfig, SimState, Simulator, ToolTable, box_particles, registered_tools
+from pasta.plugins import get_plugins
+from pasta.sim import SimConfig, SimState, Simulator, ToolTable, box_particles
 
 GRIPPER = ToolSpec(
     "test_gripper",
@@ -68,10 +69,8 @@ def test_stand_pose_is_checked_and_left_out_of_the_repr():
 
 
 def test_builtin_tools_are_registered_with_their_skills():
-    tools = {t.name: t for t in registered_tools()}
+    tools = {t.name: t for t in get_plugins().simulated_tools()}
     assert {"knife", "pusher", "roller"} <= set(tools)
-    from pasta.plugins import get_plugins
-
     for info in get_plugins().skills:
         assert info.spec.tool in tools
     assert tools["roller"].required_action == 3 and tools["roller"].action_dim == 4
@@ -96,11 +95,10 @@ def toolsim(sim):
 
     Built-in only: with a third-party tool installed (the example pasta-pinch's pincer), all registered tools
     plus these two would exceed the simulator's tool slots."""
-    from pasta.plugins import get_plugins
     from pasta.plugins.registry import BUILTIN_DISTRIBUTION
 
     reg = get_plugins().tools
-    builtin = [t for t in registered_tools() if reg.info(t.name).distribution == BUILTIN_DISTRIBUTION]
+    builtin = [t for t in get_plugins().simulated_tools() if reg.info(t.name).distribution == BUILTIN_DISTRIBUTION]
     other = Simulator(SimConfig(n_particles=3000, max_particles=10000), tools=[*builtin, GRIPPER, BOARD])
     assert other._eng is sim._eng  # tools are field data: one compiled engine serves every tool set
     return other
@@ -154,14 +152,14 @@ def test_static_board_supports_dough(toolsim):
 def test_tool_friction_override_and_set_params(toolsim):
     sim = toolsim
     assert sim.tool_friction["pusher"] == 5.0 and sim.tool_friction["test_gripper"] == 5.0
-    other = Simulator(SimConfig(n_particles=3000, max_particles=10000, tool_friction={"pusher": 1.5}))
+    other = Simulator(SimConfig(n_particles=3000, max_particles=10000, tool_friction={"pusher": 1.5}), tools=get_plugins().simulated_tools())
     assert other.tool_friction["pusher"] == 1.5
     other.set_params(knife_friction=0.25)
     assert other.tool_friction["knife"] == 0.25
     with pytest.raises(ValueError, match="spoon_friction"):
         other.set_params(spoon_friction=1.0)
     with pytest.raises(ConfigError, match="spoon"):
-        Simulator(SimConfig(tool_friction={"spoon": 1.0}))
+        Simulator(SimConfig(tool_friction={"spoon": 1.0}), tools=get_plugins().simulated_tools())
 
 
 @pytest.mark.sim
