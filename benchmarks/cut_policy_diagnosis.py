@@ -47,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
         print("seed=1000 is the test stream; diagnose on validation configs (seed=2000)", file=sys.stderr)
         return 2
     variants = args.get("variants", "learned,oracle_start,expert_predx,expert_learnedshift").split(",")
-    sim = Simulator(SimConfig(n_particles=5000, obs_points=1000, max_particles=10000), tools=get_plugins().simulated_tools())
+    sim = Simulator(SimConfig(n_particles=5000, obs_points=1000, max_particles=10000),
+                    tools=get_plugins().simulated_tools())
     skill = get_plugins().skills.create("cut")
     policy = load_policy(models / "policy" / "cut", skill)
     rows = []

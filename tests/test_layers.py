@@ -230,7 +230,8 @@ def test_imports_point_down_the_layers():
         print(f"{len(pending)} pending layer violation(s), left to other work in progress (PENDING):")
         for key in pending:
             print("  " + "\n  ".join(found[key]))
-        warnings.warn(f"{len(pending)} pending layer violations (tests/test_layers.py PENDING)", UserWarning, stacklevel=1)
+        warnings.warn(f"{len(pending)} pending layer violations (tests/test_layers.py PENDING)", UserWarning,
+                      stacklevel=1)
     new = [line for key in sorted(found) if key not in PENDING for line in found[key]]
     gone = sorted(PENDING - set(found))
     problems = []

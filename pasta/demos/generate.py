@@ -178,7 +178,8 @@ class DemoWriter:
         self.skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
         self.variant_record = variant_record(type(self.skill), cfg.scene)
         self.sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
-                                       max_particles=max(10000, cfg.n_particles)), tools=get_plugins().simulated_tools())
+                                       max_particles=max(10000, cfg.n_particles)),
+                             tools=get_plugins().simulated_tools())
 
     def generate(self, index: int) -> dict[str, np.ndarray]:
         """The arrays of demonstration ``index`` (see the module docstring)."""

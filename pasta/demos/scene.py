@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from pasta.core.errors import ConfigError, InputError, PastaError, did_you_mean
+from pasta.core.tool import ToolSpec
 
 DEFAULT = "default"
 
@@ -125,7 +126,7 @@ def scene_particles(boxes: list[tuple], n: int, rng: np.random.Generator) -> tup
 
 
 # -- scene helpers ---------------------------------------------------------------------------------------
-def standing_tool(name: str, plugins: Any = None) -> Any:
+def standing_tool(name: str, plugins: Any = None) -> ToolSpec:
     """The registered :class:`~pasta.core.ToolSpec` ``name``, which must have a stand pose
     (``spec.stand`` (3,), its top ``spec.stand_top``): how a skill or a task uses a tool another plugin
     registers without importing that plugin.

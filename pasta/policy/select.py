@@ -231,7 +231,8 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
         from pasta.sim import SimConfig, Simulator
 
         sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points, n_grid=cfg.n_grid,
-                                  max_particles=max(cfg.max_particles, cfg.n_particles)), tools=get_plugins().simulated_tools())
+                                  max_particles=max(cfg.max_particles, cfg.n_particles)),
+                        tools=get_plugins().simulated_tools())
     sk = get_plugins().skills.create(skill)
     kw: dict[str, Any] = {"start_step": cfg.start_step} if cfg.start_step >= 0 else {}
     if not cfg.reset:

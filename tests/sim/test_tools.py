@@ -152,7 +152,8 @@ def test_static_board_supports_dough(toolsim):
 def test_tool_friction_override_and_set_params(toolsim):
     sim = toolsim
     assert sim.tool_friction["pusher"] == 5.0 and sim.tool_friction["test_gripper"] == 5.0
-    other = Simulator(SimConfig(n_particles=3000, max_particles=10000, tool_friction={"pusher": 1.5}), tools=get_plugins().simulated_tools())
+    other = Simulator(SimConfig(n_particles=3000, max_particles=10000, tool_friction={"pusher": 1.5}),
+                      tools=get_plugins().simulated_tools())
     assert other.tool_friction["pusher"] == 1.5
     other.set_params(knife_friction=0.25)
     assert other.tool_friction["knife"] == 0.25

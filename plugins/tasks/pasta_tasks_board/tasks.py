@@ -1,9 +1,9 @@
 """LiftSpread and GatherMove (the paper's DiffSkill tasks, horizon 2 each), on the raised cutting board.
 
 The board (a static tool the lift skill package registers) is put at its stand pose (``ToolSpec.stand``:
-x 0.15-0.45, z 0.34-0.66, top at y 0.07) after the dough has settled, and stays there for the whole episode (it is part of the
-initial simulator state). Every goal is the state the ground-truth chain of scripted experts reaches
-with the random parameters drawn here:
+x 0.15-0.45, z 0.34-0.66, top at y 0.07) after the dough has settled, and stays there for the whole
+episode (it is part of the initial simulator state). Every goal is the state the ground-truth chain of
+scripted experts reaches with the random parameters drawn here:
 
 - ``lift_spread``: a dough cube (side U(0.055, 0.07)) on the floor right of the board (x 0.62-0.75,
   z 0.4-0.6); lift it onto the board (target centroid x 0.27-0.32, z 0.45-0.55), then roll it into a
