@@ -97,7 +97,7 @@ def step_monitor(cfg: ExecuteConfig, perception: PerceptionConfig) -> Any:
     from pasta.tasks.step import GoalMonitor
 
     return GoalMonitor(rise=float(cfg.regress_rise), near=float(cfg.regress_near), overrun=int(cfg.overrun),
-                       at_goal=float(cfg.regress_near))
+                       at_goal=float(perception.unchanged_threshold))
 
 
 def _controller(skill: Skill, kind: str) -> Controller:

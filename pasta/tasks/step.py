@@ -105,7 +105,7 @@ class GoalMonitor(StepMonitor):
     rise: float = 0.5
     near: float = 0.001
     overrun: int = 40
-    at_goal: float = 0.001
+    at_goal: float = 5e-4
     patience: int = 3
     progress: float = 0.5
     points: int = 256

@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from pasta.config import PerceptionConfig
-from pasta.core import Controller, Encoder
+from pasta.core import Controller, Encoder, Stop
 from pasta.core.plan import Plan, PlanStep, as_latents
 from pasta.execute import ExecuteConfig, attend, execute_plan
 
@@ -122,6 +122,31 @@ def test_the_monitor_skips_a_watched_step_whose_piece_is_at_its_goal_and_says_so
     assert any("nudge skipped: the piece already is at its goal" in m for m in lines), lines
     # a trusted (heuristic) controller is not watched: it runs to its own done
     assert steps["heuristic"].ended == "done" and steps["heuristic"].env_steps == 4
+
+
+@pytest.mark.sim
+def test_a_watched_step_that_changes_its_piece_a_little_but_really_executes(nudge, box_encoder, one_step_plan):
+    """A skill whose step moves its piece by a Chamfer distance of 5e-4 to 1e-3 (a press, a short nudge) runs
+    with a learned (watched) controller: only a piece within perception.unchanged_threshold (5e-4) of its
+    goal is at its goal. The rule before (regress_near, 1e-3) skipped it silently."""
+    from pasta.sim import SimConfig, Simulator, crs_dough
+    from pasta.tasks.step import GoalMonitor
+
+    class WatchedNudge(type(nudge)):
+        def policy(self):
+            return _Watched()
+
+    cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
+    sim = Simulator(cfg)
+    obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
+    goal = obs.dough - np.array([0.05, 0.0, 0.0], np.float32)
+    d = GoalMonitor().distance(obs.dough, goal)
+    assert 5e-4 < d < 1e-3, d  # a small but real change
+    assert GoalMonitor(at_goal=1e-3).should_run(obs.dough, goal, keeps_count=True, watch=True) is Stop.AT_GOAL
+    res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.05), skills={"nudge": WatchedNudge()},
+                       encoder=box_encoder, goal=goal, cfg=ExecuteConfig(controller="learned", idle_steps=1, retries=0),
+                       perception=PerceptionConfig(num_points=64))
+    assert res.steps[0].ended != "at_goal" and res.steps[0].env_steps > 0 and res.steps[0].attempts == 1
 
 
 @pytest.mark.sim

@@ -196,8 +196,9 @@ def test_retries_a_step_that_hit_the_limit_or_left_too_few_pieces():
 
 
 def test_execute_settings_build_the_monitor():
-    monitor = step_monitor(ExecuteConfig(regress_rise=0.25, regress_near=0.002, overrun=25), PerceptionConfig())
-    assert (monitor.rise, monitor.near, monitor.overrun) == (0.25, 0.002, 25)
+    monitor = step_monitor(ExecuteConfig(regress_rise=0.25, regress_near=0.002, overrun=25),
+                           PerceptionConfig(unchanged_threshold=3e-4))
+    assert (monitor.rise, monitor.near, monitor.overrun, monitor.at_goal) == (0.25, 0.002, 25, 3e-4)
     for bad, key in (({"regress_rise": -1.0}, "regress_rise"), ({"regress_near": float("nan")}, "regress_near"),
                      ({"overrun": -1}, "overrun"), ({"controller": "magic"}, "controller"), ({"goal": "guessed"}, "goal")):
         with pytest.raises(ConfigError, match=f"execute.{key}="):
