@@ -14,7 +14,7 @@ def test_group_switch_swaps_the_whole_section():
     cfg = load_config(["planner=sampling", "planner.num_samples=123", "seed=7"])
     planner = section(cfg, "planner")
     assert type(planner).__name__ == "SamplingConfig" and planner.num_samples == 123 and cfg.seed == 7
-    assert "successive_halving" not in cfg.planner
+    assert "halving_points" not in cfg.planner
 
 
 def test_typo_suggests_the_closest_key():
@@ -25,8 +25,8 @@ def test_typo_suggests_the_closest_key():
 
 
 def test_key_of_another_planner_is_rejected():
-    with pytest.raises(ConfigError, match="unknown config key 'planner.successive_halving'"):
-        load_config(["planner=sampling", "planner.successive_halving=true"])
+    with pytest.raises(ConfigError, match="unknown config key 'planner.halving_points'"):
+        load_config(["planner=sampling", "planner.halving_points=[0.5]"])
 
 
 def test_wrong_type_names_the_key():

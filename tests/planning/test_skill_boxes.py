@@ -71,7 +71,7 @@ def test_optimised_subgoals_stay_in_their_boxes(name):
     y = float(torch.as_tensor(plan.steps[0].subgoal)[0, 3])
     assert 0.3 - 1e-6 <= y <= 0.5 + 1e-6  # above the encoder's box, inside the skill's
     same = build_plan(p, plan.skills, [s.inputs for s in plan.steps], [torch.as_tensor(s.subgoal) for s in plan.steps],
-                      planner=name, cost_weight=planner.config.cost_weight, floor=planner.config.feasibility_floor)
+                      planner=name, cost_weight=planner.config.cost_weight)
     assert same.score == pytest.approx(plan.score)  # rollout clamps with the same box
 
 
