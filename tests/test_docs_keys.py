@@ -16,6 +16,10 @@ ROOT = Path(__file__).resolve().parents[1]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SECTIONS = ("planner", "encoder", "cost_model", "perception", "check", "execute", "sim", "skill", "task")
 DOTTED = re.compile(r"(?<![\w./-])((?:" + "|".join(SECTIONS) + r")\.[A-Za-z_][\w.]*)=")
+#: a key of a section no code object is named after, in backticks, with or without a value: `execute.regress_near`
+QUOTED = re.compile(r"`((?:execute|perception|check)\.[A-Za-z_][\w.]*)(?:=[^`]*)?`")
+#: misspelt on purpose: the README shows the error a typo gets
+DELIBERATE = {"planner.num_smaples"}
 COMMAND = re.compile(r"(?:^|[\s`(])(?:\.venv/bin/)?(?:pasta|python -m pasta) (plan|run|eval|config)\b([^`\n]*)")
 
 
@@ -58,12 +62,15 @@ def valid_keys() -> dict[str, set[str]]:
 def _mentions():
     for path in DOCS:
         text = path.read_text()
-        for m in DOTTED.finditer(text):
-            yield path, "config", m.group(1)
+        for m in (*DOTTED.finditer(text), *QUOTED.finditer(text)):
+            key = m.group(1).rstrip(".")
+            if key not in DELIBERATE and not key.split(".")[-1].isupper():  # `planner.KEY=`: a placeholder
+                yield path, "config", key
         for m in COMMAND.finditer(text):
             for token in m.group(2).split():
                 key, eq, _ = token.partition("=")
-                if eq and re.fullmatch(r"[A-Za-z_][\w.]*", key):
+                if eq and re.fullmatch(r"[A-Za-z_][\w.]*", key) and key not in DELIBERATE \
+                        and not key.split(".")[-1].isupper():
                     yield path, m.group(1), key
 
 
