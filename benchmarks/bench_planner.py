@@ -125,8 +125,7 @@ def scaling(args) -> None:
             n_seq = len(enumerate_skeletons([s.spec for s in problem.skills], h, 1, 2))
             for planner in ("exhaustive", "prefix_beam"):
                 # clearance_weight 0: the prior-only encoder cannot decode the extents the penalty needs
-                over = {"num_samples": args.samples_per_seq, "iterations": args.iterations, "successive_halving": True,
-                        "clearance_weight": 0.0}
+                over = {"num_samples": args.samples_per_seq, "iterations": args.iterations, "clearance_weight": 0.0}
                 note = ""
                 if planner == "exhaustive" and last is not None and last[1] * n_seq / last[0] > args.budget:
                     note = f"not run: predicted {last[1] * n_seq / last[0]:.0f} s > budget"
@@ -208,7 +207,7 @@ def main() -> None:
     ap.add_argument("--hidden", type=int, default=1024)
     ap.add_argument("--models", default=None, help="directory of trained models (pasta.nn layout)")
     ap.add_argument("--threads", type=int, default=0)
-    ap.add_argument("--extra", action="store_true", help="also compare matching modes and the sampling planner")
+    ap.add_argument("--extra", action="store_true", help="also run the sampling planner")
     ap.add_argument("--plot", default="docs/planning_bench.png")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--replot", default="", help="--scaling only: fit and plot the table of an earlier run's output")
@@ -244,11 +243,10 @@ def main() -> None:
 
     for n in args.samples:
         if n <= args.no_halving_max:
-            emit("exhaustive", n, run(problem, "exhaustive", n, iterations=args.iterations))
-        emit("exhaustive + successive halving", n, run(problem, "exhaustive", n, iterations=args.iterations, successive_halving=True))
+            emit("exhaustive", n, run(problem, "exhaustive", n, iterations=args.iterations, halving_points=[]))
+        emit("exhaustive + successive halving", n, run(problem, "exhaustive", n, iterations=args.iterations))
     if args.extra:
         n = args.samples[0]
-        emit("exhaustive, matching=recompute", n, run(problem, "exhaustive", n, iterations=args.iterations, matching="recompute"))
         emit("sampling (CEM, no gradient)", n, run(problem, "sampling", n, iterations=args.iterations))
     if args.plot:
         import matplotlib

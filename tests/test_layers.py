@@ -77,8 +77,9 @@ PENDING: set[str] = {
     "pasta.policy.evaluate -> pasta.demos",  # single-skill policy evaluation is a trainer
     "pasta.policy.evaluate -> pasta.demos.generate",
     "pasta.policy.evaluate -> pasta.demos.scene",
-    # decode_entities moves to the encoder contract or pasta.nn:
-    "pasta.policy.reset -> pasta.execute.executor",
+    # the one run config (pasta.config.run) holds the simulator's section, SimConfig, a peer's dataclass at
+    # layer 2: the owner of pasta.config either moves SimConfig down (core) or declares config above sim
+    "pasta.config.run -> pasta.sim.config",
 }
 
 

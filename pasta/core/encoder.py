@@ -11,6 +11,7 @@ from abc import ABC, abstractmethod
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
 
@@ -39,6 +40,19 @@ class Encoder(ABC):
     @abstractmethod
     def decode(self, latents: torch.Tensor, num_points: int) -> torch.Tensor:
         """Decode latents ``(K, D)`` to point clouds ``(K, P, 3)`` with ``P = num_points``."""
+
+    def decode_clouds(self, latents: Any, num_points: int) -> list[np.ndarray]:
+        """Decode ``(K, D)`` latents (any array-like) into ``K`` float32 clouds ``(num_points, 3)``, without
+        gradients: what the executor hands a controller as a sub-goal and what a summary draws."""
+        import numpy as np
+        import torch
+
+        if len(latents) == 0:
+            return []
+        with torch.no_grad():
+            out = self.decode(torch.as_tensor(np.asarray(latents, np.float32)), num_points)
+        out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
+        return [np.asarray(c, np.float32) for c in out]
 
     @abstractmethod
     def sample_prior(self, n: int, generator: torch.Generator) -> torch.Tensor:

@@ -10,9 +10,10 @@ Building blocks (any planner):
   consumed entities per step (small problems; the built-in planners sample them).
 - :func:`rollout` ``(problem, skeleton, attention, subgoals [(B, M_h, D)]) -> Rollout``: per-step
   feasibility ``(B, H)``, the sets after each step ``[(B, K_h, D)]`` and the final set cost ``(B,)``.
-- :func:`plan_score` ``(feasibility (B, H), cost (B,), cost_weight, floor) -> (B,)``: the objective
-  ``prod_h max(f_h, floor) * exp(-cost_weight * C)``; :func:`log_objective` its unfloored log, for ranking.
-- :func:`build_plan` ``(problem, skeleton, attention, subgoals [(M_h, D)], planner=, cost_weight=, floor=)
+- :func:`plan_score` ``(feasibility (B, H), cost (B,), cost_weight) -> (B,)``: the score
+  ``prod_h max(f_h, FLOOR) * exp(-cost_weight * C)``; :func:`log_objective` its unfloored log, which the
+  planners maximise and rank by.
+- :func:`build_plan` ``(problem, skeleton, attention, subgoals [(M_h, D)], planner=, cost_weight=)
   -> Plan``: re-evaluate one candidate with the problem's models and package it (what a planner returns).
 
 The batched latent optimiser (what the built-in planners use):
@@ -22,7 +23,7 @@ The batched latent optimiser (what the built-in planners use):
 - :func:`search` ``(problem, sequences, config, generator) -> SearchResult``: all samples of all
   sequences optimised in a few tensor ops per iteration.
 - :func:`receding_search` ``(problem, sequences, config, generator, window=) -> RecedingResult``: optimise a
-  window of steps, commit its first, slide (``receding_horizon``; ``prefix_beam``'s ``finish=receding``).
+  window of steps, commit its first, slide (``receding_horizon``).
 - :func:`sample_candidates`, :func:`evaluate`: the candidate batch and its evaluation (:mod:`pasta.planning.batch`).
 """
 
@@ -39,7 +40,7 @@ _EXPORTS = {
     "build_plan": "pasta.planning.latent_rollout",
     "plan_score": "pasta.planning.objective",
     "log_objective": "pasta.planning.objective",
-    "plan_objective": "pasta.planning.objective",
+    "FLOOR": "pasta.planning.objective",
     "LatentPlanner": "pasta.planning.planner",
     "LatentPlannerConfig": "pasta.planning.config",
     "HalvingConfig": "pasta.planning.config",

@@ -16,7 +16,7 @@ from pasta.core.errors import InputError
 from pasta.core.plan import as_latents
 from pasta.planning.batch import clamp_to_skill
 from pasta.planning.clearance import Clearance
-from pasta.planning.objective import plan_score
+from pasta.planning.objective import FLOOR, plan_score
 
 
 @dataclass
@@ -101,7 +101,7 @@ def build_plan(
     *,
     planner: str,
     cost_weight: float,
-    floor: float,
+    floor: float = FLOOR,
     clearance_weight: float = 0.0,
     timings: dict[str, float] | None = None,
     info: dict | None = None,

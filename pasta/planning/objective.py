@@ -1,22 +1,22 @@
 """The planning objective shared by every planner (PASTA, section 4.3 of the paper).
 
-Plans are scored by ``prod_h f_h * exp(-lambda * C)`` (:func:`plan_score`). Two differentiable
-surrogates can be maximised (``planner.objective``):
-
-- ``"log"`` (default): the log of the score, ``sum_h log f_h - lambda * C`` (:func:`log_objective`),
-  with ``log f_h`` from the feasibility logits. It has the score's maximiser, and a step whose
-  feasibility has saturated at 0 still gets a gradient of order 1.
-- ``"product"``: the paper's floored product plus ``aux_weight * sum_h f_h`` (:func:`plan_objective`).
-  Its gradient for a step with ``f_h`` below the floor comes only from the auxiliary sum and vanishes
-  with the sigmoid's slope; on crs this left the push step at ``f = 0`` (docs/planning.md).
+Plans are scored by ``prod_h max(f_h, FLOOR) * exp(-lambda * C)`` (:func:`plan_score`, the paper's score
+with its 0.01 floor). The planners maximise its log, ``sum_h log f_h - lambda * C`` (:func:`log_objective`),
+with ``log f_h`` from the feasibility logits: it has the score's maximiser, and a step whose feasibility
+has saturated at 0 still gets a gradient of order 1. (The paper maximised the floored product plus
+``0.01 * sum_h f_h``; its gradient for a step below the floor comes only from that sum and vanishes with
+the sigmoid's slope: on crs it left the push step at ``f = 0``, docs/experiments.)
 """
 
 from __future__ import annotations
 
 import torch
 
+#: the feasibility floor of the reported score (the paper's 0.01): one infeasible step does not zero a plan
+FLOOR = 0.01
 
-def plan_score(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float, floor: float) -> torch.Tensor:
+
+def plan_score(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float, floor: float = FLOOR) -> torch.Tensor:
     """Score of candidate plans: ``prod_h max(f_h, floor) * exp(-cost_weight * cost)``.
 
     Args:
@@ -27,16 +27,6 @@ def plan_score(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: fl
         ``(B,)`` scores in ``[0, 1]``; higher is better.
     """
     return feasibility.clamp(min=floor).prod(-1) * torch.exp(-cost_weight * cost.clamp(min=0.0))
-
-
-def plan_loss(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float, floor: float, aux_weight: float) -> torch.Tensor:
-    """Per-sample loss to minimise: ``-score - aux_weight * sum_h f_h`` (the sum keeps gradients alive) -> ``(B,)``."""
-    return -plan_score(feasibility, cost, cost_weight=cost_weight, floor=floor) - aux_weight * feasibility.sum(-1)
-
-
-def plan_objective(feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float, floor: float, aux_weight: float) -> torch.Tensor:
-    """The quantity the planners maximise, ``score + aux_weight * sum_h f_h`` -> ``(B,)`` (``= -plan_loss``)."""
-    return -plan_loss(feasibility, cost, cost_weight=cost_weight, floor=floor, aux_weight=aux_weight)
 
 
 def log_objective(log_feasibility: torch.Tensor, cost: torch.Tensor, *, cost_weight: float) -> torch.Tensor:

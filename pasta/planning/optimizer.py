@@ -25,10 +25,9 @@ from pasta.core.errors import ConfigError
 from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, free_feasible, sample_candidates
 from pasta.planning.clearance import Clearance
 from pasta.planning.config import LatentPlannerConfig
-from pasta.planning.objective import log_objective, plan_objective, plan_score
+from pasta.planning.objective import log_objective, plan_score
 
 METHODS = ("adam", "cem")
-OBJECTIVES = ("log", "product")
 _ADAM_BETAS = (0.9, 0.999)
 
 
@@ -97,10 +96,6 @@ def search(
     """
     if method not in METHODS:
         raise ConfigError(f"unknown optimisation method {method!r}; choose one of {METHODS}")
-    if config.matching not in ("auto", "frozen", "recompute"):
-        raise ConfigError(f"planner.matching must be 'auto', 'frozen' or 'recompute', got {config.matching!r}")
-    if config.objective not in OBJECTIVES:
-        raise ConfigError(f"planner.objective must be one of {OBJECTIVES}, got {config.objective!r}")
     if config.iterations < 0:
         raise ConfigError(f"planner.iterations must be >= 0, got {config.iterations}")
     t0 = time.perf_counter()
@@ -173,7 +168,6 @@ class _Optimiser:
         self.clearance = clearance
         self.elite_fraction, self.min_std = elite_fraction, min_std
         self.skills, self.cost, self.encoder = problem.skill_map, problem.cost, problem.encoder
-        self.freeze = cfg.matching in ("auto", "frozen")
         self.frozen: FrozenMatching | None = None
         self.evaluations = 0
 
@@ -181,21 +175,15 @@ class _Optimiser:
         cfg = self.cfg
         with torch.set_grad_enabled(grad):
             ev = evaluate(self.batch, lat, self.skills, self.cost, frozen=self.frozen, clearance=self.clearance)
-            if self.freeze and self.frozen is None:
+            if self.frozen is None:  # the matching is solved at the first evaluation and then kept (the paper's)
                 self.frozen = ev.matching
             # the plan cost: set cost to the goal plus the weighted clearance penalty (zero when off)
             cost = [c + cfg.clearance_weight * p for c, p in zip(ev.cost, ev.penalty)]
-            if cfg.objective == "log":
-                obj = [log_objective(lf, c, cost_weight=cfg.cost_weight) for lf, c in zip(ev.log_feasibility, cost)]
-            else:
-                obj = [plan_objective(lf.exp(), c, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor,
-                                      aux_weight=cfg.aux_weight) for lf, c in zip(ev.log_feasibility, cost)]
+            obj = [log_objective(lf, c, cost_weight=cfg.cost_weight) for lf, c in zip(ev.log_feasibility, cost)]
         self.evaluations += self.batch.size
-        # Ranking (halving, CEM elites): the log of the unfloored score. The floor only exists to shape
-        # gradients; without it, samples far from feasible still say which of them is closer.
-        self._log_score = [log_objective(lf.detach(), c.detach(), cost_weight=cfg.cost_weight)
-                           for lf, c in zip(ev.log_feasibility, cost)]
-        scores = [plan_score(lf.detach().exp(), c.detach(), cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
+        # Ranking (halving, CEM elites): the log of the unfloored score; the reported score has the floor
+        self._log_score = [o.detach() for o in obj]
+        scores = [plan_score(lf.detach().exp(), c.detach(), cost_weight=cfg.cost_weight)
                   for lf, c in zip(ev.log_feasibility, cost)]
         return obj, scores
 
@@ -213,9 +201,7 @@ class _Optimiser:
         lat = self._clamp(self.batch.latents())
         m = [torch.zeros_like(x) for x in lat]
         v = [torch.zeros_like(x) for x in lat]
-        milestones = set()
-        if getattr(cfg, "successive_halving", False):
-            milestones = {round(f * iters) for f in cfg.halving_points if 0 < f < 1} - {0, iters}
+        milestones = {round(f * iters) for f in getattr(cfg, "halving_points", ()) if 0 < f < 1} - {0, iters}
         b1, b2 = _ADAM_BETAS
         for it in range(iters + 1):
             last = it == iters
@@ -246,16 +232,10 @@ class _Optimiser:
         """Keep the better half (all sequences together) plus each sequence's best few; shrink the batch."""
         values = torch.cat(obj)
         seq = torch.cat([g.seq for g in self.batch.groups])
-        n = values.shape[0]
-        keep = torch.zeros(n, dtype=torch.bool)
-        if getattr(self.cfg, "halving_scope", "sequence") == "global":
-            order = torch.argsort(-values, stable=True)
-            keep[order[: math.ceil(n / 2)]] = True
-            keep[_top_per_label(values, seq, self.cfg.keep_per_sequence)] = True
-        else:
-            rank = _rank_within(values, seq)
-            size = torch.bincount(seq, minlength=len(self.batch.sequences))
-            keep[rank < torch.maximum((size + 1) // 2, torch.tensor(self.cfg.keep_per_sequence))[seq]] = True
+        keep = torch.zeros(values.shape[0], dtype=torch.bool)
+        rank = _rank_within(values, seq)
+        size = torch.bincount(seq, minlength=len(self.batch.sequences))
+        keep[rank < torch.maximum((size + 1) // 2, torch.tensor(self.cfg.keep_per_sequence))[seq]] = True
         index = [k.nonzero().squeeze(1) for k in torch.split(keep, [g.size for g in self.batch.groups])]
         self._select_rows(index)
         return index
@@ -316,10 +296,6 @@ def _rank_within(values: torch.Tensor, labels: torch.Tensor) -> torch.Tensor:
     rank = torch.empty_like(labels)
     rank[order] = torch.arange(labels.shape[0]) - starts[labels[order]]
     return rank
-
-
-def _top_per_label(values: torch.Tensor, labels: torch.Tensor, k: int) -> torch.Tensor:
-    return (_rank_within(values, labels) < k).nonzero().squeeze(1)
 
 
 def _select(batch: CandidateBatch, scores: list[torch.Tensor], top_k: int) -> SearchResult:

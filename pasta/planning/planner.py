@@ -53,7 +53,7 @@ class LatentPlanner(Planner):
             "samples": sum(r.samples for r in results),
             "evaluations": sum(r.evaluations for r in results),
             "iterations": int(self.cfg.iterations),
-            "successive_halving": bool(getattr(self.cfg, "successive_halving", False)) and self.method == "adam",
+            "successive_halving": bool(getattr(self.cfg, "halving_points", ())) and self.method == "adam",
             "per_sequence": results[-1].per_sequence if len(results) == 1 else [r.per_sequence for r in results],
         }
         if results and results[0].fixed:  # observed entities kept out of the attention search (at their goal entity)
@@ -64,7 +64,7 @@ class LatentPlanner(Planner):
         """Re-evaluate the chosen candidate with :func:`build_plan`; time it as ``select``."""
         t0 = time.perf_counter()
         plan = build_plan(problem, skeleton, attention, subgoals, planner=self.name, cost_weight=self.cfg.cost_weight,
-                          floor=self.cfg.feasibility_floor, clearance_weight=float(self.cfg.clearance_weight), info=info)
+                          clearance_weight=float(self.cfg.clearance_weight), info=info)
         timings = {**timings, "select": time.perf_counter() - t0}
         timings["total"] = sum(timings.values())
         return dataclasses.replace(plan, timings=timings)

@@ -239,7 +239,7 @@ def decoded_pieces(goal: np.ndarray, encoder: Any, *, noise: float = 0.0, draws:
     code ``z``, decoded to the piece's own point count ``n``): the kind of piece a plan's decoded sub-goal
     hands a policy at execution, where the planner chose the shape code."""
     from pasta.core.decompose import decompose_labels
-    from pasta.execute.executor import decode_entities
+    from pasta.core.encoder import Encoder
 
     rng = rng or np.random.default_rng(0)
     labels = decompose_labels(goal)
@@ -251,7 +251,7 @@ def decoded_pieces(goal: np.ndarray, encoder: Any, *, noise: float = 0.0, draws:
             u = torch.as_tensor(encoder.encode(piece[None])).repeat(max(1, draws), 1)
         if noise > 0 and z_dim:
             u[:, :z_dim] += noise * torch.as_tensor(rng.standard_normal((len(u), z_dim)), dtype=u.dtype)
-        out.append((piece, np.stack(decode_entities(encoder, u, len(piece)))))
+        out.append((piece, np.stack(Encoder.decode_clouds(encoder, u, len(piece)))))  # any object with decode()
     return out
 
 

@@ -6,7 +6,7 @@ probability exceeds ``done_threshold``, or after ``max_steps`` actions
 the rollout does not depend on the rule (the controller's point subsampling is seeded, the simulator is
 deterministic), so one rollout that never stops, with the simulator state and the done probability
 recorded at every step, scores every rule: restore the state where the rule stops, let the dough settle
-(the idle steps of :func:`pasta.tasks.executor.run_skill`) and measure the normalised improvement.
+(the idle steps of :func:`pasta.tasks.step.run_skill`) and measure the normalised improvement.
 
 Use validation configs (a config stream the test table does not use, e.g. ``seed=2000``), then report
 the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.policy.evaluate`::
@@ -46,7 +46,7 @@ def stop_index(probs: Sequence[float], actions: Sequence[np.ndarray], threshold:
                max_steps: int = 0) -> int:
     """Env steps taken when the rule ``(threshold, min_steps)`` stops a rollout whose controller output
     done probability ``probs[i]`` and action ``actions[i]`` at its step ``i``: like
-    :func:`~pasta.tasks.executor.run_skill`, a done with a non-zero action is applied then ends the
+    :func:`~pasta.tasks.step.run_skill`, a done with a non-zero action is applied then ends the
     step, an all-zero one ends it without stepping; ``len(probs)`` when the rule never fires.
     ``max_steps`` > 0: the controller also reports done at its ``max_steps``-th action."""
     for i, (p, a) in enumerate(zip(probs, actions)):
@@ -91,7 +91,7 @@ def sweep(sim: Any, skill: Any, configs: Sequence[Any], thresholds: Sequence[flo
 
     ``skill`` must carry its learned policy (``skill.policy()``). Returns ``{"rules": [[t, m, cap], ...],
     "ni": [[per-config NI for each rule], ...] (configs x rules), "steps": same shape}``."""
-    from pasta.tasks.executor import run_skill
+    from pasta.tasks.step import run_skill
 
     rules = [(float(t), int(m), int(c)) for c in caps for m in min_steps for t in thresholds]
     ni_rows, step_rows = [], []

@@ -157,7 +157,7 @@ class ReferencePlanner(Planner):
         skeleton, attention, subgoals = best[1]
         return build_plan(
             problem, skeleton, attention, subgoals, planner=self.name, cost_weight=cfg.cost_weight,
-            floor=cfg.feasibility_floor, timings={"search": time.perf_counter() - start},
+            timings={"search": time.perf_counter() - start},
         )
 
     @staticmethod
@@ -173,7 +173,7 @@ class ReferencePlanner(Planner):
             parts = list(torch.split(samples, counts, dim=1))
             with torch.no_grad():
                 r = rollout(problem, skeleton, attention, parts)
-                score = plan_score(r.feasibility, r.cost, cost_weight=cfg.cost_weight, floor=cfg.feasibility_floor)
+                score = plan_score(r.feasibility, r.cost, cost_weight=cfg.cost_weight)
                 # Elites are ranked by the unfloored log-objective: the floor makes the score flat far from
                 # feasible plans, while sum(log f) - lambda * C still says which samples are closer.
                 ranking = log_objective(r.feasibility.clamp(min=1e-30).log(), r.cost, cost_weight=cfg.cost_weight)

@@ -7,14 +7,14 @@ from pasta.testing import PlannerContract
 FAST = {"iterations": 100}
 
 
-class TestExhaustive(PlannerContract):
+class TestExhaustive(PlannerContract):  # every sample optimised to the end
     planner_name = "exhaustive"
-    planner_overrides = {**FAST, "num_samples": 128}
+    planner_overrides = {**FAST, "num_samples": 128, "halving_points": []}
 
 
-class TestExhaustiveHalving(PlannerContract):
+class TestExhaustiveHalving(PlannerContract):  # the default: successive halving
     planner_name = "exhaustive"
-    planner_overrides = {**FAST, "num_samples": 256, "successive_halving": True}
+    planner_overrides = {**FAST, "num_samples": 256}
 
 
 class TestSampling(PlannerContract):

@@ -46,7 +46,7 @@ def test_impossible_cardinality_raises(name):
 def test_gradient_at_least_as_good_as_sampling_at_equal_samples():
     problem = analytic_problem()
     for n in (128,):
-        grad = make("exhaustive", num_samples=n, iterations=100, successive_halving=False).plan(problem)
+        grad = make("exhaustive", num_samples=n, iterations=100, halving_points=[]).plan(problem)
         samp = make("sampling", num_samples=n, iterations=100).plan(problem)
         assert grad.info["evaluations"] == samp.info["evaluations"]
         assert grad.score >= samp.score - 1e-3, (n, grad.score, samp.score)
@@ -54,8 +54,8 @@ def test_gradient_at_least_as_good_as_sampling_at_equal_samples():
 
 def test_successive_halving_spends_less_and_still_solves():
     problem = analytic_problem()
-    full = make("exhaustive", num_samples=256, iterations=100, successive_halving=False).plan(problem)
-    half = make("exhaustive", num_samples=256, iterations=100, successive_halving=True).plan(problem)
+    full = make("exhaustive", num_samples=256, iterations=100, halving_points=[]).plan(problem)
+    half = make("exhaustive", num_samples=256, iterations=100).plan(problem)
     assert half.info["evaluations"] < 0.6 * full.info["evaluations"]
     assert half.skills == OPTIMAL_SKELETON and half.score > 0.5
 
@@ -76,7 +76,7 @@ def test_receding_horizon_slides_over_a_longer_skeleton():
     # 4 steps with a window of 3: the first window is a partial problem (scored against the goal)
     skeleton = (*OPTIMAL_SKELETON, "move")
     problem = dataclasses.replace(analytic_problem(horizon=4), skeleton=skeleton)
-    plan = make("receding_horizon", num_samples=128, iterations=100, window=3, successive_halving=False).plan(problem)
+    plan = make("receding_horizon", num_samples=128, iterations=100, window=3, halving_points=[]).plan(problem)
     check_plan(plan, problem)
     assert plan.skills == skeleton and len(plan.info["stages"]) == 4
     assert plan.final_cost < 0.01 and plan.score > 0.5
@@ -84,14 +84,9 @@ def test_receding_horizon_slides_over_a_longer_skeleton():
 
 def test_config_switch_builds_each_planner():
     for name in PLANNERS:
-        cfg = load_config([f"planner={name}", "planner.num_samples=2000", "planner.matching=recompute"])
+        cfg = load_config([f"planner={name}", "planner.num_samples=2000", "planner.lr=0.02"])
         planner = get_plugins().planners.create(name, section(cfg, "planner"))
-        assert planner.cfg.num_samples == 2000 and planner.cfg.matching == "recompute"
-
-
-def test_recomputed_matching_solves_too():
-    plan = make("exhaustive", num_samples=128, iterations=100, matching="recompute").plan(analytic_problem())
-    assert plan.skills == OPTIMAL_SKELETON and plan.score > 0.5
+        assert planner.cfg.num_samples == 2000 and planner.cfg.lr == 0.02
 
 
 @pytest.mark.parametrize("name", ["exhaustive", "sampling"])

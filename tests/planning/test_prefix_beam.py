@@ -10,7 +10,7 @@ from pasta.core.errors import ConfigError
 from pasta.plugins import get_plugins
 from pasta.testing import analytic_problem, configured
 
-SMALL = {"num_samples": 16, "iterations": 20, "prefix_samples": 8, "prefix_iterations": 10}
+SMALL = {"polish": 0, "num_samples": 16, "iterations": 20, "prefix_samples": 8, "prefix_iterations": 10}
 
 
 def _planner(**over):
@@ -87,48 +87,13 @@ def test_search_reports_each_sequences_best_candidate():
     winner = res.best[scores.index(max(scores))]
     assert winner[0] == res.skeleton and winner[1] == res.attention and max(scores) == res.score
     for skeleton, attention, subgoals, score in res.best:  # each candidate re-evaluates to its score
-        plan = build_plan(problem, skeleton, attention, subgoals, planner="t", cost_weight=cfg.cost_weight,
-                          floor=cfg.feasibility_floor)
+        plan = build_plan(problem, skeleton, attention, subgoals, planner="t", cost_weight=cfg.cost_weight)
         assert abs(plan.score - score) < 1e-4 * max(1.0, score), (skeleton, plan.score, score)
 
 
-def test_receding_finish_with_a_given_skeleton_plans_as_receding_horizon():
-    """finish=receding over a given skeleton is the receding_horizon planner (same seed, same window)."""
-    problem = analytic_problem(horizon=3, skeleton=("split", "move", "flatten"))
-    settings = {"num_samples": 16, "iterations": 20}
-    beam = _planner(finish="receding", finish_window=2).plan(problem)
-    receding = configured(get_plugins().planners, "receding_horizon", {**settings, "window": 2}).plan(problem)
-    assert beam.skills == receding.skills == ("split", "move", "flatten")
-    assert [s.inputs for s in beam.steps] == [s.inputs for s in receding.steps]
-    assert abs(beam.score - receding.score) < 1e-6, (beam.score, receding.score)
-    assert [s["committed"] for s in beam.info["finish"]["stages"]] == list(beam.skills)
-
-
-def test_receding_finish_plans_from_the_beams_sequences():
-    problem = analytic_problem(horizon=3)
-    plan = _planner(finish="receding").plan(problem)
-    finals = [tuple(r["skills"]) for r in plan.info["per_sequence"][0]]  # the first window search's sequences
-    assert len(plan.skills) == 3
-    check_skeleton(plan.skills, _specs(problem), 1, 2)
-    assert plan.info["finish"]["mode"] == "receding" and len(plan.info["finish"]["stages"]) == 3
-    assert all(len(w) <= 3 for w in finals)
-
-
-def test_bad_finish_names_the_key():
-    with pytest.raises(ConfigError, match="planner.finish"):
-        load_config(["planner=prefix_beam", "planner.finish=greedy"])
-    with pytest.raises(ConfigError, match="planner.finish_window"):
-        load_config(["planner=prefix_beam", "planner.finish_window=0"])
-
-
-def test_hybrid_finish_keeps_the_joint_skeleton_and_plans_it_receding():
-    problem = analytic_problem(horizon=3)
-    joint = _planner().plan(problem)
-    hybrid = _planner(finish="hybrid", finish_window=2).plan(problem)
-    assert hybrid.skills == joint.skills  # same beam, same joint search, same draws before the receding pass
-    assert hybrid.info["finish"]["mode"] == "hybrid"
-    assert [s["committed"] for s in hybrid.info["finish"]["stages"]] == list(hybrid.skills)
-    assert all(s["windows"] == 1 for s in hybrid.info["finish"]["stages"])  # one skeleton: one window per step
+def test_deleted_finish_modes_are_unknown_keys():
+    with pytest.raises(ConfigError, match="unknown config key 'planner.finish'"):
+        load_config(["planner=prefix_beam", "planner.finish=receding"])
 
 
 def test_neighbours_are_every_sequence_one_edit_away():
@@ -156,7 +121,7 @@ def test_polish_from_one_final_sequence_reaches_exhaustives_plan():
     rounds = plan.info["polish"]
     assert rounds and all(r["searched"] > 0 for r in rounds)
     assert 1 + sum(r["searched"] for r in rounds) == reference.info["sequences"]  # each searched once
-    unpolished = _planner(**over, final=1).plan(problem)
+    unpolished = _planner(**over, final=1, polish=0).plan(problem)
     assert "polish" not in unpolished.info
 
 

@@ -70,7 +70,7 @@ def test_optimised_subgoals_stay_in_their_boxes(name):
     y = float(torch.as_tensor(plan.steps[0].subgoal)[0, 3])
     assert 0.3 - 1e-6 <= y <= 0.5 + 1e-6  # above the encoder's box, inside the skill's
     same = build_plan(p, plan.skills, [s.inputs for s in plan.steps], [torch.as_tensor(s.subgoal) for s in plan.steps],
-                      planner=name, cost_weight=planner.config.cost_weight, floor=planner.config.feasibility_floor)
+                      planner=name, cost_weight=planner.config.cost_weight)
     assert same.score == pytest.approx(plan.score)  # rollout clamps with the same box
 
 
@@ -82,13 +82,13 @@ def test_plans_without_boxes_are_unchanged():
 
 
 def test_pieces_may_lie_in_any_one_box_not_in_their_hull():
-    from pasta.commands.plan import check_training_box, latent_distances
+    from pasta.execute.episode import check_training_box, latent_distances
     from pasta.core.errors import InputError
 
     p = with_box(analytic_problem())
     boxes = training_boxes(p.encoder, p.skills)
     raised = torch.tensor([[1.0, 0.0, 0.4, 0.4, 0.5]])  # inside the raised box only
-    check_training_box(raised, p.encoder, "goal", 0.0, boxes=boxes)
+    assert check_training_box(raised, p.encoder, "goal", 0.0, boxes=boxes) == []  # no flag: inside a box
     assert latent_distances(raised, p.encoder, boxes)[0]["t_outside"] == 0.0
     # between the heights of both boxes: inside their hull, outside each (0.07 above the encoder's, 0.03
     # under the raised one, the nearest)

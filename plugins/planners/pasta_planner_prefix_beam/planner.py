@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import torch
 
 from pasta.core import CardinalityError, Plan, PlanningProblem, check_skeleton, kept_indices
-from pasta.planning import LatentPlanner, SearchResult, receding_search, search
+from pasta.planning import FLOOR, LatentPlanner, SearchResult, search
 from pasta.planning.batch import free_feasible
 from pasta_planner_prefix_beam.config import PrefixBeamConfig
 
@@ -39,15 +39,10 @@ class PrefixBeamPlanner(LatentPlanner):
     of the same count). Every child whose entity count equals the goal's is a complete candidate (only
     length ``H``, or with ``max_horizon = N > 0`` any length ``1..N``, as ``exhaustive``); the ``final``
     best of them are optimised jointly from the observed set with ``num_samples`` x ``iterations`` (the
-    same :func:`search` and objective as ``exhaustive``), and the best wins; with ``finish=receding``
-    they are searched a window of ``finish_window`` steps at a time instead (:func:`receding_search`,
-    as ``receding_horizon`` does: better sub-goals for the first steps of long plans); ``finish=hybrid``
-    takes the skeleton the joint search chose and plans its sub-goals with :func:`receding_search`. With
-    ``polish = R > 0`` the joint search is followed by up to ``R`` rounds of local search over sequences one
-    edit away from the best found (:meth:`_polish`), which recovers full sequences whose prefixes the beam
-    dropped on noisy values. A given
-    ``problem.skeleton`` skips the beam (and with ``finish=receding`` plans as ``receding_horizon``). At
-    most ``width * C`` searches per depth (``C`` entity counts), each over at most ``K`` sequences of
+    same :func:`search` and objective as ``exhaustive``), and the best wins. With ``polish = R > 0`` the
+    joint search is followed by up to ``R`` rounds of local search over sequences one edit away from the
+    best found (:meth:`_polish`), which recovers full sequences whose prefixes the beam dropped on noisy
+    values. A given ``problem.skeleton`` skips the beam. At most ``width * C`` searches per depth (``C`` entity counts), each over at most ``K`` sequences of
     ``window`` steps, instead of ``K^H`` sequences.
     """
 
@@ -65,24 +60,16 @@ class PrefixBeamPlanner(LatentPlanner):
         else:
             sequences, stages, prefix_timings = self._beam(problem, gen)
             timings["beam"] = prefix_timings
-        results, receding, polish = [], None, []
-        if cfg.finish != "receding":  # jointly, as exhaustive optimises each sequence
-            if int(cfg.polish) > 0 and problem.skeleton is None:
-                results += self._polish(problem, sequences, gen, polish)
-            else:
-                results.append(search(problem, sequences, cfg, gen, method=self.method))
-        if cfg.finish != "joint":  # a window at a time from the observed set: "receding" over the kept
-            # sequences, "hybrid" over the one the joint search chose (its skeleton, receding sub-goals)
-            chosen = [results[-1].skeleton] if results else sequences
-            receding = receding_search(problem, chosen, cfg, gen, window=int(cfg.finish_window), method=self.method)
-            results += receding.results
-        result = receding if receding is not None else results[-1]
+        results, polish = [], []
+        if int(cfg.polish) > 0 and problem.skeleton is None:
+            results += self._polish(problem, sequences, gen, polish)
+        else:
+            results.append(search(problem, sequences, cfg, gen, method=self.method))
+        result = results[-1]
         for key in ("sample", "optimise"):
             timings[key] = sum(r.timings[key] for r in results)
         timings["enumerate"] = time.perf_counter() - t0 - sum(timings.values())
         info = self.info(sequences, results)
-        if receding is not None:
-            info["finish"] = {"mode": str(cfg.finish), "window": int(cfg.finish_window), "stages": receding.stages()}
         info["beam"] = {"width": int(cfg.width), "final": int(cfg.final), "prefix_samples": int(cfg.prefix_samples),
                         "prefix_iterations": int(cfg.prefix_iterations), "max_horizon": int(cfg.max_horizon),
                         "prefix_searches": sum(s["searches"] for s in stages),
@@ -169,7 +156,7 @@ class PrefixBeamPlanner(LatentPlanner):
         cfg = self.cfg
         t0 = time.perf_counter()
         specs = [s.spec for s in problem.skills]
-        k_goal, floor = len(problem.goal), float(cfg.feasibility_floor)
+        k_goal, floor = len(problem.goal), FLOOR
         exact, horizon = self._lengths(problem)
 
         @functools.lru_cache(maxsize=None)
