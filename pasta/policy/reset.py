@@ -407,7 +407,7 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
     from pasta.config.overrides import build
     from pasta.io.checkpoint import save_checkpoint
     from pasta.plugins import get_plugins
-    from pasta.train.data import load_demos, split_by_demo
+    from pasta.demos.data import load_demos, split_by_demo
 
     from pasta.train.loop import torch_threads
 

@@ -148,7 +148,7 @@ class PolicyTask:
 def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: PolicyConfig | None = None,
               tool: str | None = None, seed: int = 0, batch_size: int = 32) -> PolicyTask:
     """Load the demonstrations of ``skill`` under ``data`` (shared reader), split them by demonstration, build the task."""
-    from pasta.train.data import load_demos, split_by_demo
+    from pasta.demos.data import load_demos, split_by_demo
 
     demos = load_demos(data, [skill], stage="policy")
     if cfg.max_demos > 0:

@@ -400,7 +400,7 @@ def _check_inputs(cfg: PipelineConfig, units: Sequence[Unit]) -> None:
 
     stages = {u.stage for u in units}
     if "demos" not in stages and stages - {"demos", "select"}:
-        from pasta.train.data import read_manifest
+        from pasta.demos.data import read_manifest
 
         try:
             read_manifest(cfg.data)

@@ -1,4 +1,4 @@
-"""Synthetic demonstrations in the dataset format of :mod:`pasta.train.data`, without the simulator.
+"""Synthetic demonstrations in the dataset format of :mod:`pasta.demos.data`, without the simulator.
 
 Geometry follows the CRS generators of the paper's release (unit-cube workspace, y up, dough resting
 at y = 0.0269), and each demonstration interpolates particle positions over ``steps`` steps:

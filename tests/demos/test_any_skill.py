@@ -135,7 +135,7 @@ def test_two_to_one_and_one_to_one_plugin_skills_demos_and_training(merge_plugin
     ``pasta pipeline`` with the plugin's skills (what `pasta demos` / `pasta train` run one by one)."""
     from pasta.core.decompose import decompose
     from pasta.nn.loading import load_feasibility
-    from pasta.train.data import load_demos
+    from pasta.demos.data import load_demos
     from pasta.train.pipeline import run_pipeline
 
     data, out = tmp_path / "demos", tmp_path / "models"

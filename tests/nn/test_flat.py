@@ -10,7 +10,7 @@ from pasta.core import MissingComponentError
 from pasta.core.skill import Controller, Skill, SkillSpec, ToolPose
 from pasta.io.checkpoint import IncompatibleCheckpointError, load_checkpoint
 from pasta.nn.flat import FlatSkill, flat_skills, load_flat
-from pasta.train.data import load_demo
+from pasta.demos.data import load_demo
 from pasta.train.run import train
 from pasta.train.synthetic import write_synthetic_dataset
 

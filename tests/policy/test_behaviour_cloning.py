@@ -7,7 +7,7 @@ import torch
 from pasta.core.errors import InputError
 from pasta.core.skill import SkillObservation
 from pasta.policy.dataset import DemoSet
-from pasta.train.data import Demo
+from pasta.demos.data import Demo
 from pasta.policy.learned import LearnedPolicy
 from pasta.policy.network import PolicyConfig
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig

@@ -12,7 +12,7 @@ from pasta.policy.learned import LearnedPolicy, PolicyController
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
 from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, align_offset, load_reset, train_reset
-from pasta.train.data import Demo
+from pasta.demos.data import Demo
 
 TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
 

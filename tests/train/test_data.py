@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from pasta.core.errors import InputError
-from pasta.train.data import load_demo, load_demos, read_manifest, split_by_demo
+from pasta.demos.data import load_demo, load_demos, read_manifest, split_by_demo
 from pasta.train.synthetic import synthetic_demo, write_synthetic_dataset
 
 
