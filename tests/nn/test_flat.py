@@ -12,7 +12,7 @@ from pasta.io.checkpoint import IncompatibleCheckpointError, load_checkpoint
 from pasta.nn.flat import FlatSkill, flat_skills, load_flat
 from pasta.demos.data import load_demo
 from pasta.train.run import train
-from pasta.train.synthetic import write_synthetic_dataset
+from synthetic_demos import write_synthetic_dataset
 
 TINY = {
     "vae": {"epochs": "1", "width": "16", "fold_hidden": "16", "input_points": "64", "target_points": "64",

@@ -8,7 +8,7 @@ import pytest
 
 from pasta.core.errors import ConfigError
 from pasta.train.pipeline import PipelineConfig, parse_arguments, plan, run_pipeline
-from pasta.train.synthetic import write_synthetic_dataset
+from synthetic_demos import write_synthetic_dataset
 
 
 @pytest.fixture(scope="module")

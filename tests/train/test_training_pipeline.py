@@ -94,7 +94,7 @@ def test_bad_arguments_fail_before_any_work(three_demos, tmp_path, tiny):
 def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
     """The demos unit with the simulator replaced by synthetic demonstrations."""
     import pasta.demos.generate as generate
-    from pasta.train.synthetic import synthetic_demo
+    from synthetic_demos import synthetic_demo
 
     def fake_generate(cfg, *, progress=True, backend=None):
         todo = generate.pending(cfg)
