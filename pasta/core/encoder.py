@@ -8,7 +8,10 @@ inside the box of training centroids with :meth:`Encoder.clamp`.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
+
+import numpy as np
 
 if TYPE_CHECKING:
     import torch
@@ -51,3 +54,20 @@ class Encoder(ABC):
         low = torch.tensor(self.t_low, dtype=latents.dtype, device=latents.device)
         high = torch.tensor(self.t_high, dtype=latents.dtype, device=latents.device)
         return torch.cat([latents[..., : self.z_dim], torch.maximum(torch.minimum(latents[..., self.z_dim :], high), low)], -1)
+
+    def decode_clouds(self, latents: torch.Tensor | np.ndarray | Sequence[Sequence[float]],
+                      num_points: int) -> list[np.ndarray]:
+        """Decode latents ``(K, D)`` into ``K`` clouds ``(num_points, 3)`` float32 numpy arrays, without
+        gradients: :meth:`decode` for the consumers of clouds (a policy's sub-goal, a log, an augmentation)."""
+        import torch
+
+        if len(latents) == 0:
+            return []
+        if isinstance(latents, torch.Tensor):
+            x = latents.detach().to("cpu", torch.float32)
+        else:
+            x = torch.as_tensor(np.asarray(latents, np.float32))
+        with torch.no_grad():
+            out = self.decode(x, num_points)
+        out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
+        return [np.asarray(c, np.float32) for c in out]

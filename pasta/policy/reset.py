@@ -237,9 +237,9 @@ def decoded_pieces(goal: np.ndarray, encoder: Any, *, noise: float = 0.0, draws:
     """The pieces of ``goal (G, 3)`` (DBSCAN, :func:`pasta.core.decompose.decompose_labels`), each with
     ``draws`` reconstructions by ``encoder`` ``(draws, n, 3)`` (encoded, Gaussian ``noise`` on the shape
     code ``z``, decoded to the piece's own point count ``n``): the kind of piece a plan's decoded sub-goal
-    hands a policy at execution, where the planner chose the shape code."""
+    hands a policy at execution, where the planner chose the shape code. ``encoder``: a
+    :class:`pasta.core.Encoder` (:meth:`~pasta.core.Encoder.decode_clouds`)."""
     from pasta.core.decompose import decompose_labels
-    from pasta.execute.executor import decode_entities
 
     rng = rng or np.random.default_rng(0)
     labels = decompose_labels(goal)
@@ -251,7 +251,7 @@ def decoded_pieces(goal: np.ndarray, encoder: Any, *, noise: float = 0.0, draws:
             u = torch.as_tensor(encoder.encode(piece[None])).repeat(max(1, draws), 1)
         if noise > 0 and z_dim:
             u[:, :z_dim] += noise * torch.as_tensor(rng.standard_normal((len(u), z_dim)), dtype=u.dtype)
-        out.append((piece, np.stack(decode_entities(encoder, u, len(piece)))))
+        out.append((piece, np.stack(encoder.decode_clouds(u, len(piece)))))
     return out
 
 

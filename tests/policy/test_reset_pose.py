@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from pasta.core import ToolPose
+from pasta.core import Encoder, ToolPose
 from pasta.core.skill import SkillObservation
 from pasta.io.checkpoint import save_checkpoint
 from pasta.policy.learned import LearnedPolicy, PolicyController
@@ -250,8 +250,13 @@ def test_regressor_learns_every_value_of_a_multi_value_target():
     assert y.shape == (2,) and np.isclose(y[0], reset.offset(d.dough[0], d.after))
 
 
-class _FakeEncoder:
+class _FakeEncoder(Encoder):
     """``encode`` -> the centroid; ``decode`` -> ``n`` points at that centroid (a maximal blur)."""
+
+    z_dim = 0
+
+    def sample_prior(self, n, generator):
+        raise NotImplementedError
 
     def encode(self, points):
         return torch.as_tensor(np.asarray(points, np.float32).mean(1))
@@ -298,10 +303,13 @@ def test_piece_share_input_carries_each_goal_pieces_share_of_the_points():
 def test_noisy_decodings_vary_the_shape_and_keep_the_point_count():
     from pasta.policy.reset import decoded_pieces
 
-    class _Shape:
+    class _Shape(Encoder):
         """``z`` (1 value) stretches the piece along x: decoded length 0.1 * (1 + z)."""
 
         z_dim = 1
+
+        def sample_prior(self, n, generator):
+            raise NotImplementedError
 
         def encode(self, points):
             p = torch.as_tensor(np.asarray(points, np.float32))
