@@ -1,6 +1,6 @@
 """Where does the learned cut lose against the expert? Per validation config (never the test seed 1000).
 
-For each config of ``python -m pasta.policy.evaluate``'s stream (default ``seed=2000``), runs the scripted
+For each config of ``python -m pasta.train.evaluate``'s stream (default ``seed=2000``), runs the scripted
 expert (its final dough is the goal) and then, from the same state:
 
 - ``learned``: the learned policy as shipped (its reset pose and stopping rule);
@@ -36,7 +36,7 @@ def main(argv: list[str] | None = None) -> int:
     from pasta.core import ToolPose
     from pasta.core.metrics import emd, normalized_improvement
     from pasta.plugins import get_plugins
-    from pasta.policy.evaluate import make_configs
+    from pasta.train.evaluate import make_configs
     from pasta.policy.learned import load_policy
     from pasta.sim import SimConfig, Simulator
     from pasta.tasks.executor import run_skill

@@ -37,7 +37,7 @@ EPILOG = """arguments (key=value):
   <stage>.<skill>.<key>=value
                          a setting of one skill's unit, e.g. feasibility.push.epochs=30
   The keys are those of `pasta demos`, `pasta train <stage>` (see docs/learning.md),
-  `python -m pasta.policy.reset` and `python -m pasta.policy.select` (docs/policies.md); a typo is
+  `python -m pasta.train.reset` and `python -m pasta.train.select` (docs/policies.md); a typo is
   reported with the closest valid key before anything runs.
 
 units and defaults (sized for a 2-core CPU; the settings the shipped models were trained with; the
@@ -52,10 +52,10 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
                          cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true;
                          lift: also goal_feature=true
-  reset/cut              python -m pasta.policy.reset epochs=90 start_step=0 points=1000 threads=1 target=skill
+  reset/cut              python -m pasta.train.reset epochs=90 start_step=0 points=1000 threads=1 target=skill
                          piece_share=true x_share=true decoded_goals=0.5 decoded_noise=0.5
                                                                 -> OUT/policy/cut/reset.* (+ reset_metrics.json)
-  select/<skill>         python -m pasta.policy.select n=20 seed=2000 write=1 threads=1 (validation
+  select/<skill>         python -m pasta.train.select n=20 seed=2000 write=1 threads=1 (validation
                          configs; the rule goes into OUT/policy/<skill>/model.json, the per-config
                          results into select.json); cut thresholds=0.3,...,0.7
                          max_steps=0,40,45,50,55,60,65,70,80,100; roll thresholds=0.3,...,0.8

@@ -34,7 +34,7 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError(f"`pasta train {args.module}` needs {' and '.join(k + '=DIR' for k in missing)}")
     data, out = pairs.pop("data"), pairs.pop("out")
     if args.module == "policy":
-        from pasta.policy.train import train_command
+        from pasta.train.policy import train_command
 
         metrics = train_command(data, out, pairs)
     else:

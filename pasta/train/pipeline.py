@@ -1,7 +1,7 @@
 """``pasta pipeline``: demonstrations and every learned module in one resumable run.
 
 Units run in this order, each one a ``pasta demos`` or ``pasta train`` call, or for the last two stages
-``python -m pasta.policy.reset`` / ``python -m pasta.policy.select``::
+``python -m pasta.train.reset`` / ``python -m pasta.train.select``::
 
     demos/<skill> (+ demos/<skill>-<variant>) -> vae -> feasibility/<skill> -> cost -> policy/<skill>
         -> reset/<skill> -> select/<skill>
@@ -12,10 +12,10 @@ unless ``skills=`` names some. Each skill's plugin brings its own settings
 whose demonstrations the pipeline adds after the default ones (:attr:`pasta.core.DemoVariant.pipeline_demos`,
 unit ``demos/<skill>-<variant>``, e.g. push's ``demos/push-wide``).
 
-``reset/<skill>`` trains the learned reset (start) pose of a policy (:mod:`pasta.policy.reset`; by default
+``reset/<skill>`` trains the learned reset (start) pose of a policy (:mod:`pasta.train.reset`; by default
 for the skills whose ``training_defaults`` list ``reset``, ``reset_skills=``) into
 ``OUT/policy/<skill>/reset.*``; ``select/<skill>`` chooses the policy's stopping rule on the validation
-configs (seed 2000) and writes it into its ``model.json`` (:mod:`pasta.policy.select`; by default for the
+configs (seed 2000) and writes it into its ``model.json`` (:mod:`pasta.train.select`; by default for the
 skills that list ``select``, ``select_skills=``), with the per-config results in
 ``OUT/policy/<skill>/select.json``. Both run after every policy unit, so a rule is chosen with the
 skill's reset pose in place.
@@ -296,17 +296,17 @@ def _build(stage: str, skill: str | None, values: Mapping[str, Any]) -> tuple:
 
         return tuple(build_many(values, [DemoConfig], command="pasta demos"))
     if stage == "reset":
-        from pasta.policy.reset import ResetTrainConfig
+        from pasta.train.reset import ResetTrainConfig
 
-        return tuple(build_many(values, [ResetTrainConfig], command="python -m pasta.policy.reset"))
+        return tuple(build_many(values, [ResetTrainConfig], command="python -m pasta.train.reset"))
     if stage == "select":
-        from pasta.policy.select import SelectConfig
+        from pasta.train.select import SelectConfig
 
-        configs = tuple(build_many(values, [SelectConfig], command="python -m pasta.policy.select"))
+        configs = tuple(build_many(values, [SelectConfig], command="python -m pasta.train.select"))
         configs[0].grid()  # malformed grids fail now
         return configs
     if stage == "policy":
-        from pasta.policy.train import LOOP_DEFAULTS, PolicyTrainConfig
+        from pasta.train.policy import LOOP_DEFAULTS, PolicyTrainConfig
         from pasta.train.loop import LoopConfig
 
         classes = [LoopConfig, PolicyTrainConfig]
@@ -550,16 +550,16 @@ def _run_demos(cfg: PipelineConfig, unit: Unit, backend: Any = None) -> dict[str
 def _run_training(cfg: PipelineConfig, unit: Unit) -> dict[str, Any]:
     values = dict(unit.values)
     if unit.stage == "reset":
-        from pasta.policy.reset import reset_command
+        from pasta.train.reset import reset_command
 
         return reset_command(cfg.data, unit.directory, str(unit.skill), values)
     if unit.stage == "select":
-        from pasta.policy.select import RESULT, select_command
+        from pasta.train.select import RESULT, select_command
 
         doc = select_command(cfg.out, str(unit.skill), values, out=unit.directory / RESULT)
         return {**doc["selected"], "n": doc["n"], "seed": doc["seed"]}
     if unit.stage == "policy":
-        from pasta.policy.train import train_command
+        from pasta.train.policy import train_command
 
         return train_command(cfg.data, cfg.out, {"skill": unit.skill, **values})
     from pasta.train.run import train
@@ -612,7 +612,7 @@ def _changed(old: Any, new: Any, prefix: str = "") -> list[str]:
 
 def _partial_rows(directory: Path) -> int:
     """Configs an interrupted ``select`` unit has scored (rows of its ``select.partial.jsonl``)."""
-    from pasta.policy.select import PARTIAL
+    from pasta.train.select import PARTIAL
 
     try:
         return max(0, sum(1 for line in (directory / PARTIAL).read_text().splitlines() if line.strip()) - 1)

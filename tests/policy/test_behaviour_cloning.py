@@ -6,12 +6,12 @@ import torch
 
 from pasta.core.errors import InputError
 from pasta.core.skill import SkillObservation
-from pasta.policy.dataset import DemoSet
+from pasta.train.policy_data import DemoSet
 from pasta.demos.data import Demo
 from pasta.policy.learned import LearnedPolicy
 from pasta.policy.network import PolicyConfig
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.train import PolicyTrainConfig, train_policy
+from pasta.train.policy import PolicyTrainConfig, train_policy
 
 TINY = PolicyConfig(encoder=PointNet2Config(levels=[SAConfig(32, 0.1, 8, (32, 32))], global_widths=(64, 128)),
                     head_widths=(64,))

@@ -11,7 +11,8 @@ from pasta.io.checkpoint import save_checkpoint
 from pasta.policy.learned import LearnedPolicy, PolicyController
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, align_offset, load_reset, train_reset
+from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, load_reset
+from pasta.train.reset import align_offset, train_reset
 from pasta.demos.data import Demo
 
 TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
@@ -139,7 +140,7 @@ def test_reset_head_moves_the_start_pose_and_the_step_counter(tmp_path):
 
 
 def test_start_at_reset_drops_the_align_phase():
-    from pasta.policy.train import from_reset_pose
+    from pasta.train.policy import from_reset_pose
 
     demo, _ = _cut_demo(0, np.random.default_rng(3))
     _, k = align_offset(demo)
@@ -217,7 +218,7 @@ def test_checkpoints_without_a_target_regress_the_tool_x():
 
 
 def test_reset_command_rejects_an_unknown_target(tmp_path):
-    from pasta.policy.reset import reset_command
+    from pasta.train.reset import reset_command
 
     with pytest.raises(ValueError, match="target must be tool or skill"):
         reset_command(tmp_path, tmp_path, "cut", {"target": "plane"})
@@ -266,7 +267,7 @@ class _FakeEncoder(Encoder):
 
 
 def test_decoded_goal_augmentation_replaces_whole_pieces():
-    from pasta.policy.reset import _goal_draw, decoded_pieces
+    from pasta.train.reset import _goal_draw, decoded_pieces
 
     rng = np.random.default_rng(0)
     bar = np.c_[np.linspace(0.4, 0.6, 200), np.full(200, 0.02), np.full(200, 0.5)].astype(np.float32)
@@ -301,7 +302,7 @@ def test_piece_share_input_carries_each_goal_pieces_share_of_the_points():
 
 
 def test_noisy_decodings_vary_the_shape_and_keep_the_point_count():
-    from pasta.policy.reset import decoded_pieces
+    from pasta.train.reset import decoded_pieces
 
     class _Shape(Encoder):
         """``z`` (1 value) stretches the piece along x: decoded length 0.1 * (1 + z)."""

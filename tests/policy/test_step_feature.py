@@ -7,12 +7,12 @@ import pytest
 import torch
 
 from pasta.core.skill import SkillObservation
-from pasta.policy.dataset import DemoSet
+from pasta.train.policy_data import DemoSet
 from pasta.policy.learned import LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.select import select_rule, stop_index
-from pasta.policy.train import PolicyTrainConfig, train_policy
+from pasta.train.select import select_rule, stop_index
+from pasta.train.policy import PolicyTrainConfig, train_policy
 from pasta.demos.data import Demo
 
 TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
@@ -109,7 +109,7 @@ def test_stop_index_follows_run_skill():
 
 def test_checkpoint_carries_its_stopping_rule(tmp_path):
     from pasta.io.checkpoint import save_checkpoint
-    from pasta.policy.select import write_rule
+    from pasta.train.select import write_rule
 
     torch.manual_seed(0)
     net = PolicyNet(PolicyConfig(action_dim=2, dough_points=16, tool_points=8, goal_points=16, **TINY))

@@ -139,7 +139,7 @@ def test_reset_and_select_run_after_the_policy_then_skip_and_rerun_only_what_cha
 
 
 def test_an_interrupted_select_resumes_at_the_next_config(knife_demos, tmp_path, monkeypatch):
-    import pasta.policy.select as select
+    import pasta.train.select as select
 
     args = _args(knife_demos, tmp_path, "select.n=2", "stages=policy,reset")
     assert _status(run_pipeline(args, echo=lambda _: None)) == {"policy/cut": "ran", "reset/cut": "ran"}

@@ -9,9 +9,9 @@ recorded at every step, scores every rule: restore the state where the rule stop
 (the idle steps of :func:`pasta.tasks.executor.run_skill`) and measure the normalised improvement.
 
 Use validation configs (a config stream the test table does not use, e.g. ``seed=2000``), then report
-the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.policy.evaluate`::
+the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.train.evaluate`::
 
-    python -m pasta.policy.select models=models skill=roll n=20 seed=2000 \\
+    python -m pasta.train.select models=models skill=roll n=20 seed=2000 \\
            [thresholds=0.3,0.4,0.5,0.6,0.7] [min_steps=1] [max_steps=0,60,80] [out=FILE.json] [write=1]
            [start_step=S] [reset=0] [learned_max_steps=N] [threads=1]
 
@@ -144,7 +144,7 @@ def write_rule(directory: str | Path, rule: dict[str, Any]) -> None:
 
 @dataclass
 class SelectConfig:
-    """Settings of :func:`select_command` (``python -m pasta.policy.select`` and the pipeline's ``select`` stage).
+    """Settings of :func:`select_command` (``python -m pasta.train.select`` and the pipeline's ``select`` stage).
 
     Attributes:
         n: validation configs.
@@ -212,7 +212,7 @@ def select_command(models: str | Path, skill: str, overrides: dict[str, Any] | N
     from pasta.config.overrides import build
     from pasta.train.loop import torch_threads
 
-    cfg = build(SelectConfig, dict(overrides or {}), command="python -m pasta.policy.select")
+    cfg = build(SelectConfig, dict(overrides or {}), command="python -m pasta.train.select")
     with torch_threads(cfg.threads):
         return _select(models, skill, cfg, out=out, sim=sim, resume=resume)
 
@@ -221,7 +221,7 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
             resume: bool) -> dict[str, Any]:
     from pasta.plugins import get_plugins
     from pasta.policy import POLICY_DIR
-    from pasta.policy.evaluate import make_configs
+    from pasta.train.evaluate import make_configs
     from pasta.policy.learned import load_policy
 
     thresholds, min_steps, caps = cfg.grid()
@@ -294,11 +294,11 @@ def grid_table(doc: dict[str, Any]) -> str:
 def main(argv: Sequence[str] | None = None) -> int:
     from pasta.config.overrides import script_args
 
-    args = script_args(argv, __doc__, "python -m pasta.policy.select")
+    args = script_args(argv, __doc__, "python -m pasta.train.select")
     models = Path(args.pop("models", "models"))
     name = args.pop("skill", "")
     if not name:
-        raise SystemExit("python -m pasta.policy.select: give skill=NAME (the policy in MODELS/policy/NAME)")
+        raise SystemExit("python -m pasta.train.select: give skill=NAME (the policy in MODELS/policy/NAME)")
     out = args.pop("out", None)
     sim_kw = json.loads(args.pop("sim")) if "sim" in args else None
     sim = None

@@ -7,7 +7,7 @@ initial state with that goal cloud as its sub-goal, and is scored by the normali
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
 
-``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=a,b] [scene=VARIANT] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
+``python -m pasta.train.evaluate models=models n=20 seed=1000 [skills=a,b] [scene=VARIANT] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
 (the stopping rule: the checkpoint's own, ``config.controller``, unless given; a learned reset pose
 beside the policy, ``reset.*``, is used unless ``reset=0``, its step counter starting at ``start_step``.)
 (the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
@@ -148,7 +148,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     from pasta.config.overrides import script_args
 
-    args = script_args(argv, __doc__, "python -m pasta.policy.evaluate")
+    args = script_args(argv, __doc__, "python -m pasta.train.evaluate")
     models = Path(args.get("models", "models"))
     n, seed = int(args.get("n", 20)), int(args.get("seed", 1000))
     if "skills" in args:

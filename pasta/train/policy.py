@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from pasta.core.errors import ConfigError
-from pasta.policy.dataset import Batch, DemoSet
+from pasta.train.policy_data import Batch, DemoSet
 from pasta.policy.learned import MODULE, LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
 
@@ -49,7 +49,7 @@ class PolicyTrainConfig:
         goal_feature: the network also sees the goal centroid's offset from the dough centroid
             (:attr:`PolicyConfig.goal_feature`).
         start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
-            first step with a vertical action, :func:`pasta.policy.reset.align_offset`), so the step
+            first step with a vertical action, :func:`pasta.train.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
             the policy never learns the align motion the reset pose replaces (cut).
     """
@@ -167,10 +167,10 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
 
 def from_reset_pose(demo: Any) -> Any:
     """``demo`` from its reset pose on: the steps before its first vertical action (the align phase,
-    :func:`pasta.policy.reset.align_offset`) removed; a demo with no vertical action is kept whole."""
+    :func:`pasta.train.reset.align_offset`) removed; a demo with no vertical action is kept whole."""
     from dataclasses import replace
 
-    from pasta.policy.reset import align_offset
+    from pasta.train.reset import align_offset
 
     _, k = align_offset(demo)
     if k <= 0 or k >= len(demo.action):
