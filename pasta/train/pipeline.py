@@ -26,7 +26,7 @@ not change the result), the dataset (absolute path and demonstrations per skill)
 feasibility and cost, a digest of the VAE weights they encode with. A training unit is *done* when its
 ``metrics.json`` exists and its record holds the same settings; done units are skipped. A unit whose
 record holds the same settings but which has no ``metrics.json`` was interrupted: the training loop
-resumes it from its ``last.*`` checkpoint (a ``reset`` unit, a few minutes, restarts; a ``select`` unit
+resumes it from its ``last.*`` checkpoint (a ``reset`` unit from its ``reset_last.*``; a ``select`` unit
 resumes at the first config it had not scored). ``reset`` and ``select`` units write into the policy's
 directory but have their own done files (``reset_metrics.json``, ``select.json``); a ``select`` unit's
 settings include digests of the policy and reset weights it scored, so a retrained policy reselects, and
@@ -80,7 +80,7 @@ STAGE_DEFAULTS: dict[str, dict[str, Any]] = {
     "feasibility": {"threads": 1},
     "cost": {"stride": 5, "threads": 1},
     "policy": {"epochs": 40, "steps_per_epoch": 50, "threads": 1},
-    "reset": {"epochs": 45, "start_step": 0, "points": 1000, "threads": 1},
+    "reset": {"threads": 1},
     "select": {"n": 20, "seed": 2000, "write": True, "threads": 1},
 }
 #: value of ``skills``, ``reset_skills`` and ``select_skills`` that means "what the skill plugins ask for"
@@ -91,7 +91,8 @@ FIGURES = {"vae": "heldout_chamfer_mean", "feasibility": "heldout_auc_hard", "co
 #: the file whose presence (with a matching record) marks a unit of these stages done, in its directory
 DONE_FILES = {"reset": "reset_metrics.json", "select": "select.json"}
 #: what a fresh start removes from a unit's directory, per stage (default: the training loop's files)
-FRESH_FILES = {"reset": ("reset_metrics.json",), "select": ("select.json", "select.partial.jsonl")}
+FRESH_FILES = {"reset": ("reset_metrics.json", "reset_last.safetensors", "reset_last.json"),
+               "select": ("select.json", "select.partial.jsonl")}
 #: keys the pipeline sets itself, per stage, and where to set them instead
 _FLAT = "`pasta train <module> flat=true` for the Flat 3D baseline (the pipeline trains the entity models)"
 RESERVED = {"demos": {"skill": "skills=", "out": "data="}, "feasibility": {"skill": "skills=", "flat": _FLAT},
@@ -296,9 +297,9 @@ def _build(stage: str, skill: str | None, values: Mapping[str, Any]) -> tuple:
 
         return tuple(build_many(values, [DemoConfig], command="pasta demos"))
     if stage == "reset":
-        from pasta.train.reset import ResetTrainConfig
+        from pasta.train.reset import reset_configs
 
-        return tuple(build_many(values, [ResetTrainConfig], command="python -m pasta.train.reset"))
+        return reset_configs(values, command="pasta train reset")
     if stage == "select":
         from pasta.train.select import SelectConfig
 
@@ -582,16 +583,15 @@ def _fresh_start(directory: Path, stage: str = "") -> list[str]:
 def _prepare(unit: Unit, record: Mapping[str, Any] | None, current: dict[str, Any], *, resume: bool,
              force: bool) -> str:
     """Get a training unit's directory ready (a fresh start clears the last run's files); say what happens."""
-    if resume and unit.stage == "reset":
-        return "restarting (interrupted; the reset regressor trains in minutes and keeps no last.*)"
     if resume and unit.stage == "select":
         done = _partial_rows(unit.directory)
         return f"resuming ({done} of {unit.configs[0].n} configs scored)" if done else "restarting (interrupted before its first config)"
     if resume:
-        epoch = _last_epoch(unit.directory)
+        last = "reset_last" if unit.stage == "reset" else "last"
+        epoch = _last_epoch(unit.directory, last)
         if epoch is None:
             return "restarting (interrupted before its first epoch ended)"
-        return f"resuming from last.* ({epoch} of {unit.configs[0].epochs} epochs done)"
+        return f"resuming from {last}.* ({epoch} of {unit.configs[0].epochs} epochs done)"
     removed = _fresh_start(unit.directory, unit.stage)
     why: list[str] = []
     if force:
@@ -620,9 +620,9 @@ def _partial_rows(directory: Path) -> int:
         return 0
 
 
-def _last_epoch(directory: Path) -> int | None:
+def _last_epoch(directory: Path, last: str = "last") -> int | None:
     try:
-        return int(json.loads((directory / "last.json").read_text())["state"]["epoch"]) + 1
+        return int(json.loads((directory / f"{last}.json").read_text())["state"]["epoch"]) + 1
     except (OSError, KeyError, TypeError, ValueError):
         return None
 

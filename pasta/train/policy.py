@@ -24,6 +24,7 @@ from pasta.core.errors import ConfigError
 from pasta.train.policy_data import Batch, DemoSet
 from pasta.policy.learned import MODULE, LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
+from pasta.train.loop import LoopConfig, fit, numpy_rng
 
 __all__ = ["PolicyTask", "PolicyTrainConfig", "from_reset_pose", "train_policy"]
 
@@ -85,10 +86,6 @@ def _to_torch(b: Batch) -> dict[str, torch.Tensor]:
     return out
 
 
-def _np_rng(generator: torch.Generator) -> np.random.Generator:
-    return np.random.default_rng(int(torch.randint(0, 2**62, (1,), generator=generator)))
-
-
 class PolicyTask:
     """The policy as a :class:`pasta.train.loop.TrainTask`.
 
@@ -120,7 +117,7 @@ class PolicyTask:
         return {"skill": self.skill, "tool": self.tool, "network": self.model.cfg.to_dict()}
 
     def batches(self, batch_size: int, generator: torch.Generator) -> Iterator[dict[str, torch.Tensor]]:
-        rng = _np_rng(generator)
+        rng = numpy_rng(generator)
         for _ in range(self.cfg.steps_per_epoch):
             yield _to_torch(self.train_set.sample(rng.integers(0, len(self.train_set), batch_size), rng))
 
@@ -200,8 +197,6 @@ def train_policy(skill: str, data: str | Path, out: str | Path, *, cfg: PolicyTr
     Returns:
         ``(policy, fit_result)``: the best-validation policy and the loop's result.
     """
-    from pasta.train.loop import LoopConfig, fit
-
     cfg = cfg or PolicyTrainConfig()
     loop = loop or LoopConfig()
     task = make_task(skill, data, cfg, network=network, seed=loop.seed, batch_size=loop.batch_size)
@@ -224,7 +219,6 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
 
     from pasta.config.overrides import build_many
     from pasta.policy import POLICY_DIR
-    from pasta.train.loop import LoopConfig
 
     pairs = dict(overrides or {})
     skill = pairs.pop("skill", "")
@@ -233,8 +227,6 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     loop, cfg = build_many({**LOOP_DEFAULTS, **pairs}, [LoopConfig, PolicyTrainConfig], command="pasta train policy")
     directory = Path(out) / POLICY_DIR / skill
     task = make_task(skill, data, cfg, seed=loop.seed, batch_size=loop.batch_size)
-    from pasta.train.loop import fit
-
     result = fit(task, loop, directory)
     figures = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
     metrics = {"module": MODULE, "skill": skill, "data": str(data), "train_demos": len(task.train_set.demos),

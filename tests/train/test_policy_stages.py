@@ -57,9 +57,9 @@ def test_default_plan_adds_reset_for_cut_and_select_for_cut_and_roll():
     builtin = [n for n in later if n.split("/")[1] in ("cut", "push", "roll")]
     assert builtin == ["reset/cut", "select/cut", "select/roll"]
     units = {u.name: u for u in plan(PipelineConfig(stages="reset,select"), {})}
-    reset, cut, roll = units["reset/cut"].configs[0], units["select/cut"].configs[0], units["select/roll"].configs[0]
-    # the shipped regressor's settings: the pipeline's (start_step, points) and the cut plugin's own
-    assert (reset.epochs, reset.start_step, reset.points) == (90, 0, 1000)
+    (loop, reset), cut, roll = units["reset/cut"].configs, units["select/cut"].configs[0], units["select/roll"].configs[0]
+    # the shipped regressor's settings: the trainer's defaults (epochs, start_step, points) and the cut plugin's own
+    assert (loop.epochs, reset.start_step, reset.points) == (90, 0, 1000)
     assert (reset.target, reset.piece_share, reset.decoded_goals, reset.decoded_noise) == ("skill", True, 0.5, 0.5)
     policy = {u.name: u for u in plan(PipelineConfig(stages="policy"), {})}
     assert policy["policy/cut"].configs[1].start_at_reset and not policy["policy/roll"].configs[1].start_at_reset
