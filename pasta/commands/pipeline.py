@@ -94,7 +94,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pasta.train.pipeline import run_pipeline
+    from pasta.pipeline import run_pipeline
 
     try:
         results = run_pipeline(args.overrides)

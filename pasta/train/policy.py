@@ -208,6 +208,16 @@ def train_policy(skill: str, data: str | Path, out: str | Path, *, cfg: PolicyTr
 LOOP_DEFAULTS: dict[str, Any] = {"epochs": 40, "batch_size": 32, "lr": 1e-3}
 
 
+def policy_configs(overrides: dict[str, Any] | None = None) -> tuple[LoopConfig, PolicyTrainConfig]:
+    """The loop's and the policy's settings from ``key=value`` overrides over :data:`LOOP_DEFAULTS` (a typo
+    fails with the closest valid key)."""
+    from pasta.config.overrides import build_many
+
+    loop, cfg = build_many({**LOOP_DEFAULTS, **dict(overrides or {})}, [LoopConfig, PolicyTrainConfig],
+                           command="pasta train policy")
+    return loop, cfg
+
+
 def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] | None = None) -> dict[str, Any]:
     """``pasta train policy skill=NAME data=DIR out=MODELS [key=value ...]`` as a function.
 
@@ -217,14 +227,13 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     """
     import json
 
-    from pasta.config.overrides import build_many
     from pasta.policy import POLICY_DIR
 
     pairs = dict(overrides or {})
     skill = pairs.pop("skill", "")
     if not skill:
         raise ConfigError("`pasta train policy` needs skill=NAME (a registered skill)")
-    loop, cfg = build_many({**LOOP_DEFAULTS, **pairs}, [LoopConfig, PolicyTrainConfig], command="pasta train policy")
+    loop, cfg = policy_configs(pairs)
     directory = Path(out) / POLICY_DIR / skill
     task = make_task(skill, data, cfg, seed=loop.seed, batch_size=loop.batch_size)
     result = fit(task, loop, directory)

@@ -197,6 +197,16 @@ PARTIAL = "select.partial.jsonl"
 RESULT = "select.json"
 
 
+def select_config(overrides: dict[str, Any] | None = None) -> SelectConfig:
+    """:class:`SelectConfig` from ``key=value`` overrides (a typo fails with the closest valid key, a
+    malformed grid with what is wrong)."""
+    from pasta.config.overrides import build
+
+    cfg = build(SelectConfig, dict(overrides or {}), command="pasta train select")
+    cfg.grid()
+    return cfg
+
+
 def select_command(models: str | Path, skill: str, overrides: dict[str, Any] | None = None, *,
                    out: str | Path | None = None, sim: Any = None, resume: bool = True) -> dict[str, Any]:
     """Score every stopping rule of the grid on the validation configs and pick the best (see the module
@@ -209,10 +219,9 @@ def select_command(models: str | Path, skill: str, overrides: dict[str, Any] | N
     over); returns the result.
     ``sim``: a simulator to use (default: a new one with ``n_particles`` / ``obs_points``).
     """
-    from pasta.config.overrides import build
     from pasta.train.loop import torch_threads
 
-    cfg = build(SelectConfig, dict(overrides or {}), command="python -m pasta.train.select")
+    cfg = select_config(overrides)
     with torch_threads(cfg.threads):
         return _select(models, skill, cfg, out=out, sim=sim, resume=resume)
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from pasta.core.errors import ConfigError
-from pasta.train.pipeline import PipelineConfig, parse_arguments, plan, run_pipeline
+from pasta.pipeline import PipelineConfig, parse_arguments, plan, run_pipeline
 from synthetic_demos import write_synthetic_dataset
 
 
