@@ -1,6 +1,6 @@
 """Where does the learned cut lose against the expert? Per validation config (never the test seed 1000).
 
-For each config of ``python -m pasta.train.evaluate``'s stream (default ``seed=2000``), runs the scripted
+For each config of ``pasta train evaluate``'s stream (default ``seed=2000``), runs the scripted
 expert (its final dough is the goal) and then, from the same state:
 
 - ``learned``: the learned policy as shipped (its reset pose and stopping rule);

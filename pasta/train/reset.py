@@ -4,14 +4,15 @@ The regressor learns, per demonstration, the tool's ``x`` offset from the initia
 of the expert's align phase (:func:`align_offset`: the first step with a vertical action), or with
 ``target="skill"`` the skill's :meth:`~pasta.core.skill.Skill.reset_target` of that ``x``.
 
-Checkpoint: ``DIR/reset.safetensors`` + ``DIR/reset.json`` beside the policy's ``DIR/model.*``, with the
-held-out errors in ``DIR/reset_metrics.json`` (:func:`reset_command`, what the pipeline's ``reset`` stage runs).
+``pasta train reset data=DIR out=MODELS skill=NAME [key=value ...]`` (:func:`train_command`; keys of
+:class:`~pasta.train.loop.LoopConfig` and :class:`ResetTrainConfig`) writes ``MODELS/policy/<skill>/reset.safetensors``
++ ``reset.json`` beside the policy's ``model.*``, ``reset_last.*`` to resume, and the held-out errors in
+``reset_metrics.json``; the pipeline's ``reset`` stage runs the same (:func:`reset_command`).
 """
 
 from __future__ import annotations
 
 import json
-import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -26,7 +27,7 @@ from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, reset_in
 from pasta.train.loop import LoopConfig, fit, numpy_rng, torch_threads
 
 __all__ = ["LOOP_DEFAULTS", "ResetTask", "ResetTrainConfig", "align_offset", "decoded_pieces", "reset_command",
-           "reset_configs", "share_below", "train_reset"]
+           "reset_configs", "share_below", "train_command", "train_reset"]
 
 
 def share_below(cloud: np.ndarray, x: float) -> float:
@@ -308,18 +309,13 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
     return metrics
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from pasta.config.overrides import script_args
+def train_command(data: str | Path, out: str | Path, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """``pasta train reset data=DIR out=MODELS skill=NAME [key=value ...]`` as a function: :func:`reset_command`
+    into the policy's directory ``MODELS/policy/<skill>`` (``reset.*`` beside its ``model.*``); returns the metrics."""
+    from pasta.policy import POLICY_DIR
 
-    args = script_args(argv, __doc__, "python -m pasta.train.reset")
-    data, skill = args.pop("data", "data/demos"), args.pop("skill", "")
+    pairs = dict(overrides or {})
+    skill = pairs.pop("skill", "")
     if not skill:
-        raise SystemExit("python -m pasta.train.reset: give skill=NAME (its demonstrations in DATA/NAME)")
-    out = args.pop("out")
-    metrics = reset_command(data, out, skill, args)
-    print(json.dumps(metrics, indent=2))
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+        raise ConfigError("`pasta train reset` needs skill=NAME (its demonstrations in DATA/NAME)")
+    return reset_command(data, Path(out) / POLICY_DIR / skill, skill, pairs)

@@ -1,4 +1,4 @@
-"""`python -m pasta.train.evaluate scene=VARIANT`: held-out configs drawn from a skill's scene variant, with
+"""`pasta train evaluate scene=VARIANT`: held-out configs drawn from a skill's scene variant, with
 the variant's tools placed and its expert parameters, as `pasta demos scene=VARIANT` draws them."""
 
 from types import SimpleNamespace
