@@ -43,7 +43,7 @@ class ResetConfig:
     """Sizes of :class:`ResetPoseNet`; ``scale``: metres per unit of the regressed offset;
     ``start_step``: the policy's step counter when it starts from the predicted pose; ``draws``: at
     inference, the offset is the mean over this many seeded point subsamples (1: one, as trained);
-    ``target``: what the offset is of, ``"tool"`` (the tool ``x``; checkpoints without the key) or
+    ``target``: what the offset is of, ``"tool"`` (the tool ``x``) or
     ``"skill"`` (the skill's ``reset_target`` of it, turned back by ``reset_tool_x``); ``outputs``: how
     many values the network regresses (``R``: the first an ``x`` offset in metres, the others unitless;
     ``len(skill.reset_target(x))`` for ``"skill"``); ``piece_share``: every goal point also carries its
@@ -66,7 +66,14 @@ class ResetConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
-        return cls(**{k: v for k, v in d.items() if k in cls.__dataclass_fields__})
+        """The config a checkpoint wrote (``asdict``); every key must be there (no defaults for missing ones).
+
+        Raises:
+            ConfigError: a key is missing or unknown."""
+        from pasta.policy.network import _check_keys
+
+        _check_keys("reset pose network", d, cls.__dataclass_fields__)
+        return cls(**d)
 
 
 def x_at_share(cloud: np.ndarray, share: float) -> float:
@@ -188,7 +195,8 @@ def load_reset(directory: str | Path) -> ResetPose | None:
 
     if not checkpoint_exists(directory, NAME):
         return None
-    ckpt = load_checkpoint(directory, module=MODULE, name=NAME)
+    ckpt = load_checkpoint(directory, module=MODULE, name=NAME,
+                           hint="train one with `pasta train reset data=DIR out=MODELS skill=NAME`")
     net = ResetPoseNet(ResetConfig.from_dict(ckpt.config["network"]))
     net.load_state_dict(ckpt.tensors)
     return ResetPose(net)

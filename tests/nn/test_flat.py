@@ -156,6 +156,6 @@ def test_entity_models_are_not_taken_for_flat_ones(flat_root, tmp_path):
         (mixed / sub).symlink_to(root / sub)
     entity = SetFeasibility(1, 1, 5, 8)  # a 1 -> 1 entity network (push) must not pass for a flat one
     save_checkpoint(mixed / "feasibility" / "push", module="feasibility", tensors=entity.state_dict(),
-                    config={**entity.config(), "skill": "push", "train": {}})
+                    config={**entity.config(), "skill": "push", "scope": "entity", "output_box": None, "train": {}})
     with pytest.raises(IncompatibleCheckpointError, match="scope"):
         load_flat(mixed, [get_plugins().skills.create("push")])

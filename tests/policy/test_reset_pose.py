@@ -215,9 +215,15 @@ def test_regressor_on_the_skill_target_places_the_tool_through_the_skill(tmp_pat
         train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(1))
 
 
-def test_checkpoints_without_a_target_regress_the_tool_x():
-    cfg = ResetConfig.from_dict({"points": 32, "widths": [32], "head": [16]})  # a reset.json written before the key
-    assert cfg.target == "tool"
+def test_a_tool_target_regresses_the_tool_x_and_configs_name_every_key():
+    from dataclasses import asdict
+
+    from pasta.core.errors import ConfigError
+
+    cfg = ResetConfig(points=32, widths=[32], head=[16])
+    assert ResetConfig.from_dict(asdict(cfg)) == cfg
+    with pytest.raises(ConfigError, match="reset pose network config lacks target"):
+        ResetConfig.from_dict({k: v for k, v in asdict(cfg).items() if k != "target"})
     reset = ResetPose(ResetPoseNet(cfg))
     piece = np.random.default_rng(0).uniform(0.4, 0.6, (30, 3)).astype(np.float32)
     assert np.isclose(reset.tool_x(_ShiftedEffect(), piece, piece), piece[:, 0].mean() + reset.offset(piece, piece), atol=1e-6)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from pasta.core.errors import ConfigError
 from pasta.core.skill import SkillObservation
 from pasta.train.policy_data import DemoSet
 from pasta.policy.learned import LearnedPolicy
@@ -32,14 +33,18 @@ def _frozen_demo(path, steps=8, points=40, seed=0):
     return blob, tool, action
 
 
-def test_old_configs_load_without_the_step_feature():
-    d = PolicyConfig(action_dim=2, **TINY).to_dict()
-    d.pop("step_feature")
-    d.pop("step_scale")
-    cfg = PolicyConfig.from_dict(d)
-    assert cfg.step_feature is False
+def test_configs_round_trip_and_a_missing_key_is_an_error():
     on = PolicyConfig(action_dim=2, step_feature=True, step_scale=30.0, **TINY)
     assert PolicyConfig.from_dict(on.to_dict()) == on
+    d = on.to_dict()
+    d.pop("goal_feature")
+    d["step_featur"] = True
+    with pytest.raises(ConfigError, match="policy network config lacks goal_feature and has unknown step_featur"):
+        PolicyConfig.from_dict(d)
+    d = on.to_dict()
+    del d["encoder"]["pos_scale"]
+    with pytest.raises(ConfigError, match="encoder config lacks pos_scale"):
+        PolicyConfig.from_dict(d)
 
 
 def test_step_changes_the_output_only_with_the_feature():
@@ -165,7 +170,6 @@ def test_goal_feature_is_the_centroid_offset_and_survives_a_scene_shift():
     torch.manual_seed(0)
     cfg = PolicyConfig(action_dim=3, step_feature=True, goal_feature=True, **TINY)
     assert cfg.aux_dim == 4 and PolicyConfig.from_dict(cfg.to_dict()) == cfg
-    assert PolicyConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "goal_feature"}).goal_feature is False
     net = PolicyNet(cfg).eval()
     seen = []
     net.aux.register_forward_hook(lambda mod, inp, out: seen.append(inp[0].clone()))
