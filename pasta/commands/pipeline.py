@@ -49,8 +49,8 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
                          shift_max=0.25; push and roll stride=4 epochs=20   -> OUT/feasibility/<skill>
   cost                   stride=5 threads=1 (epochs 60)                     -> OUT/cost
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
-                         cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true;
-                         lift: also goal_feature=true
+                         (step_feature and pose_feature on: the defaults); cut: start_at_reset=true;
+                         push and lift: goal_feature=true
   reset/cut              pasta train reset threads=1 (epochs 90, start_step 0, points 1000) target=skill
                          piece_share=true x_share=true decoded_goals=0.5 decoded_noise=0.5
                                                                 -> OUT/policy/cut/reset.* (+ reset_metrics.json)

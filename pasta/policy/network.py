@@ -52,9 +52,9 @@ class PolicyConfig:
         center_xz: shift every cloud so that the dough centroid is at ``x = z = 0``.
         encoder: the PointNet++ sizes.
         head_widths: hidden widths of the action and done heads.
-        step_feature: feed the execution step ``t / step_scale`` to the heads.
+        step_feature: feed the execution step ``t / step_scale`` to the heads (on: every shipped policy).
         step_scale: divisor of the step index.
-        pose_feature: feed the tool pose ``(7,)`` to the heads.
+        pose_feature: feed the tool pose ``(7,)`` to the heads (on: every shipped policy).
         goal_feature: feed the goal centroid's offset from the dough centroid ``(3,)`` to the heads.
         aux_widths: widths of the MLP that embeds the step / pose / goal inputs.
     """
@@ -66,9 +66,9 @@ class PolicyConfig:
     center_xz: bool = True
     encoder: PointNet2Config = field(default_factory=PointNet2Config)
     head_widths: tuple[int, ...] = (256, 128)
-    step_feature: bool = False
+    step_feature: bool = True
     step_scale: float = 50.0
-    pose_feature: bool = False
+    pose_feature: bool = True
     goal_feature: bool = False
     aux_widths: tuple[int, ...] = (64, 64)
 

@@ -45,10 +45,10 @@ class PolicyTrainConfig:
         dough_points, tool_points, goal_points: points per source fed to the network.
         max_demos: use at most this many demonstrations (0 = all).
         step_feature: the network also sees the step index within the execution
-            (:attr:`PolicyConfig.step_feature`; for skills whose phase one frame does not show).
-        pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`).
+            (:attr:`PolicyConfig.step_feature`, whose default this is: a skill's phase one frame does not show).
+        pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`, its default).
         goal_feature: the network also sees the goal centroid's offset from the dough centroid
-            (:attr:`PolicyConfig.goal_feature`).
+            (:attr:`PolicyConfig.goal_feature`; push and lift turn it on in their ``training_defaults``).
         start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
             first step with a vertical action, :func:`pasta.train.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
@@ -66,9 +66,9 @@ class PolicyTrainConfig:
     tool_points: int = 100
     goal_points: int = 512
     max_demos: int = 0
-    step_feature: bool = False
-    pose_feature: bool = False
-    goal_feature: bool = False
+    step_feature: bool = PolicyConfig.step_feature
+    pose_feature: bool = PolicyConfig.pose_feature
+    goal_feature: bool = PolicyConfig.goal_feature
     start_at_reset: bool = False
 
     def __post_init__(self) -> None:
@@ -92,7 +92,8 @@ class PolicyTask:
     Args:
         skill: skill name; ``tool``: its tool (saved in the checkpoint).
         train, val: demonstration sets (``val`` may be the training set for tiny runs).
-        cfg: policy training settings; ``network``: network sizes (``action_dim`` is taken from the data).
+        cfg: policy training settings (the point counts and the step / pose / goal inputs of the network);
+            ``network``: the other network sizes (``action_dim`` is taken from the data).
         seed: seed of the fixed validation batches.
         batch_size: size of the validation batches.
     """
@@ -105,9 +106,8 @@ class PolicyTask:
         net_cfg = network or PolicyConfig()
         net_cfg.action_dim = train.action_dim
         net_cfg.dough_points, net_cfg.tool_points, net_cfg.goal_points = cfg.dough_points, cfg.tool_points, cfg.goal_points
-        net_cfg.step_feature = net_cfg.step_feature or cfg.step_feature
-        net_cfg.pose_feature = net_cfg.pose_feature or cfg.pose_feature
-        net_cfg.goal_feature = net_cfg.goal_feature or cfg.goal_feature
+        # the inputs are training settings (key=value on `pasta train policy`); network= gives the sizes
+        net_cfg.step_feature, net_cfg.pose_feature, net_cfg.goal_feature = cfg.step_feature, cfg.pose_feature, cfg.goal_feature
         torch.manual_seed(seed)
         self.model = PolicyNet(net_cfg)
         rng = np.random.default_rng(seed + 7919)
