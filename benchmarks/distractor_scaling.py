@@ -6,7 +6,7 @@ Scenes come from the crs_distractors test instances (2 distractors each): the ob
 with the distractor pieces taken out (0), one kept (1), both (2), or copies of both (same particles,
 translated to free spots near the front/back walls, identically in the observation and the goal) added
 (4, 6). Each scene is planned with the default `pasta` planner and shipped weights, as `pasta run` plans
-(`pasta.execute.pipeline.plan_from_clouds`); `--before` also plans it with the unchanged-entity
+(`pasta.execute.episode.perceive_and_plan`); `--before` also plans it with the unchanged-entity
 matching off (`unchanged_threshold=0`, the planner before issue 22). Nothing is executed: the scenes
 with copied pieces have no simulator state. Printed per count: right skeleton (the task's
 cut-push-roll), plans attending a distractor, plan score, planning seconds and the attention
@@ -88,7 +88,9 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_num_threads(1)
     from pasta.core.decompose import decompose
     from pasta.core.matching import unchanged_pairs
-    from pasta.execute.pipeline import plan_from_clouds
+    import dataclasses
+
+    from pasta.execute.episode import perceive_and_plan
     from pasta.execute.session import build_session
 
     s = build_session("crs_distractors")
@@ -111,8 +113,9 @@ def main(argv: list[str] | None = None) -> int:
                     eg = decompose(goal, min_points=50, seed=seed)
                     fixed = unchanged_pairs(np.stack(eo), np.stack(eg))
                     t0 = time.perf_counter()
-                    plan = plan_from_clouds(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost,
-                                            horizon=3, seed=seed, unchanged_threshold=threshold)
+                    plan = perceive_and_plan(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost,
+                                             horizon=3, seed=seed, check=s.check, perception=dataclasses.replace(
+                                                 s.perception, unchanged_threshold=threshold)).plan
                     wall = time.perf_counter() - t0
                     k, f = len(eo), len(fixed) if threshold > 0 else 0
                     structures = math.prod(math.comb(kk - f, 1) for kk in (k, k + 1, k + 1))

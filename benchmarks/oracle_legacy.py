@@ -1,8 +1,8 @@
 """Any ``pasta`` command with the frozen legacy kernel (benchmarks/legacy_engine.py) behind today's Simulator.
 
-    PASTA_TASK_CACHE=/tmp/legacy .venv/bin/python benchmarks/oracle_legacy.py oracle task=crs num=5
+    PASTA_TASK_CACHE=/tmp/legacy .venv/bin/python benchmarks/oracle_legacy.py eval task=crs method=oracle num=5 out=/tmp/legacy-eval
 
-compared with ``PASTA_TASK_CACHE=/tmp/new .venv/bin/pasta oracle task=crs num=5`` measures what the
+compared with ``PASTA_TASK_CACHE=/tmp/new .venv/bin/pasta eval task=crs method=oracle num=5 out=/tmp/new-eval`` measures what the
 plugin-driven kernel changes at task level (use separate task caches: both kernels share the task key).
 Only the knife, pusher and roller (in that order) are supported, as in the legacy kernel.
 """

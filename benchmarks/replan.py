@@ -1,7 +1,7 @@
 """Plan (no execution) task instances with one or more planners and print the plan objective side by side.
 
     python benchmarks/replan.py --task crs --horizon 6 --seeds 1000 1001 1002 \
-        --planner prefix_beam --planner "exhaustive planner.max_horizon=6" [--skeleton false] [--skills cut,push,roll] \
+        --planner prefix_beam --planner "exhaustive planner.max_horizon=6" [--skeleton task] [--skills cut,push,roll] \
         [--reference docs/results/crs_pasta_h6.jsonl]
 
 Each ``--planner`` is a planner name followed by ``planner.KEY=VALUE`` overrides. The problem is built as
@@ -25,7 +25,7 @@ def main(argv: list[str]) -> int:
     ap.add_argument("--horizon", type=int, default=0)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1000])
     ap.add_argument("--planner", action="append", default=[], help='"NAME planner.k=v ..." (repeatable)')
-    ap.add_argument("--skeleton", default="false")
+    ap.add_argument("--skeleton", default="", help="skeleton= of the run config: a,b,c, task, or empty (the planner searches)")
     ap.add_argument("--skills", default="", help="comma-separated skills to plan with (default: the task's default set)")
     ap.add_argument("--reference", default="")
     ap.add_argument("--threads", type=int, default=1)
@@ -37,7 +37,6 @@ def main(argv: list[str]) -> int:
     import torch
 
     torch.set_num_threads(args.threads)
-    from pasta.execute.pipeline import plan_from_clouds
     from pasta.execute.session import build_session
 
     ref = {}
@@ -50,9 +49,9 @@ def main(argv: list[str]) -> int:
     sessions = []
     for spec in planners:
         name, *over = spec.split()
-        sessions.append((spec, build_session(args.task, config_overrides=[f"planner={name}", *over],
-                                             horizon=args.horizon or None, skeleton=args.skeleton,
-                                             **({"skills": args.skills} if args.skills else {}))))
+        given = [f"planner={name}", *over, f"skeleton={args.skeleton}", *([f"horizon={args.horizon}"] if args.horizon else []),
+                 *([f"skills={args.skills}"] if args.skills else [])]
+        sessions.append((spec, build_session(args.task, given)))
     sim = sessions[0][1].task.make_sim()
     print(f"| seed | planner | plan score | plan s | skeleton |")
     print("|---:|---|---:|---:|---|")
@@ -63,14 +62,8 @@ def main(argv: list[str]) -> int:
             print(f"| {seed} | reference ({Path(args.reference).stem}) | {r['plan_score']:.4f} | {r['plan_s']:.1f} | "
                   f"{'-'.join(r['skeleton'])} |", flush=True)
         for spec, session in sessions:
-            inst = session.task.instance(seed)
-            sim.set_state(inst.init)
-            skeleton = tuple(inst.skeleton[: session.horizon]) if session.use_skeleton else None
             t0 = time.perf_counter()
-            plan = plan_from_clouds(sim.observe().dough, inst.goal, planner=session.planner, skills=session.skills,
-                                    encoder=session.encoder, cost=session.cost, horizon=session.horizon,
-                                    seed=seed + args.seed_offset,
-                                    skeleton=skeleton, min_points=session.exe.min_points)
+            plan = session.plan(seed, sim=sim, planning_seed=seed + args.seed_offset).plan
             wall = time.perf_counter() - t0
             print(f"| {seed} | {spec} | {plan.score:.4f} | {wall:.1f} | {'-'.join(plan.skills)} |", flush=True)
             rows.append({"seed": seed, "planner": spec, "score": plan.score, "plan_s": wall, "skeleton": list(plan.skills),

@@ -35,9 +35,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         _plugin_warnings_as_lines()
         try:
             return int(args.handler(args) or 0)
-        except PastaError as exc:
+        except PastaError as exc:  # a usage error (exit 2), or a plugin that failed at work (its exit_code, 1)
             print(f"pasta {args.command}: error: {exc}", file=sys.stderr)
-            return 2
+            return int(getattr(exc, "exit_code", 2))
 
 
 def _plugin_warnings_as_lines() -> None:

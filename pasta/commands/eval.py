@@ -2,8 +2,9 @@
 
 Episodes run on the task's fixed test seeds (``pasta.tasks.fixed_test_seeds``: 1000, 1001, ...), or with
 ``split=val`` on its validation seeds (2000, 2001, ...: choose settings there, report the test seeds). Every
-finished episode is appended to ``OUT/<task>_<method>[_h<H>][_learned][_val].jsonl`` at once, so an
-interrupted evaluation resumes where it stopped (``resume=false`` starts over); the summary (mean +/- std
+finished episode is appended to ``OUT/<task>_<method>[_<setting>...][_val].jsonl`` at once (:func:`result_path`),
+so an interrupted evaluation resumes where it stopped (``resume=false`` starts over; a file of other settings
+is never resumed); the summary (mean +/- std
 of the normalised improvement, success rate, planning and execution seconds) is printed and written
 next to it as ``.json``.
 """
@@ -18,45 +19,35 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pasta.core.errors import ConfigError, did_you_mean
+from pasta.core.errors import ConfigError
 
-HELP = "evaluate a method on a task's fixed test set (task=T method=pasta|sampling|flat|oracle num=20)"
+HELP = "evaluate a method on a task's fixed test set (task=T [method=pasta|flat|oracle] num=20 [key=value ...])"
 
 EPILOG = """examples:
-  pasta eval task=crs method=pasta num=20
+  pasta eval task=crs num=20
   pasta eval task=crs method=flat num=20
-  pasta eval task=crs_twice method=pasta num=20          # receding horizon with the given skeleton, as in the paper
-  pasta eval task=crs method=pasta horizon=5 num=20      # a longer planning horizon than the task needs
-  pasta eval task=cut_rearrange method=oracle num=20
-  pasta eval task=crs method=pasta skills=cut,push,roll   # plan with these skills only
-  pasta eval task=crs_distractors num=10 task.distractors=4   # a task setting -> crs_distractors_pasta_distractors4.jsonl
-  pasta eval task=crs method=pasta workers=2              # two episodes at a time, in local worker processes
-  pasta eval task=crs method=pasta backend=ray ray.address=auto   # episodes as Ray tasks on a cluster
-keys: task method num split(test|val) out models controller horizon skeleton skills resume threads workers,
-task.<setting> (a task config field: its own instances and result file, e.g. task.distractors=4),
-backend(local|ray) ray.address ray.num_cpus, execute.<field>; other key=value items go to the run config (planner, planner.*, device). Without skills=,
-skills with no trained weights under the models root are left out with a warning (as `pasta run`)."""
+  pasta eval task=crs_twice num=20                       # receding horizon with the given skeleton, as in the paper
+  pasta eval task=crs horizon=5 num=20                   # a longer planning horizon than the task needs
+  pasta eval task=cut_rearrange method=oracle num=20     # the ground-truth chain with the heuristic controllers
+  pasta eval task=crs skills=cut,push,roll               # plan with these skills only
+  pasta eval task=crs_distractors num=10 task.distractors=4   # a task setting: its own instances and result file
+  pasta eval task=crs workers=2                          # two episodes at a time, in local worker processes
+  pasta eval task=crs backend=ray ray.address=auto       # episodes as Ray tasks on a cluster
+keys of this command: num split(test|val) out resume workers backend(local|ray) ray.address ray.num_cpus; every
+other key=value is a run-config key (`pasta config task=crs` lists them; controller=X is short for
+execute.controller=X). The result file is OUT/<task>_<method>[_<setting>...][_val].jsonl, named by the settings
+given; a file of other settings is never resumed."""
 
 
 @dataclass
 class EvalArgs:
-    """The ``pasta eval`` keys (the rest go to the run config or ``execute.*``)."""
+    """The keys of ``pasta eval`` that are not run settings."""
 
-    task: str = "crs"
-    method: str = "pasta"
     num: int = 20
     # "test": the fixed test seeds 1000, 1001, ... (report these); "val": 2000, 2001, ... (choose settings here)
     split: str = "test"
     out: str = "runs/eval"
-    models: str = ""
-    horizon: int = 0
-    skeleton: str = "auto"
-    # comma-separated skills to plan with; empty: every registered skill with trained weights
-    skills: str = ""
     resume: bool = True
-    # torch CPU threads (0: torch's default). 1 by default: crs planning took 5.6 s with 1 thread and
-    # 126 s with 2 on a 2-core machine that was also running a training job.
-    threads: int = 1
     # episodes at once: 0 runs them in this process; N in N local worker processes (backend=local) or at
     # most N Ray tasks in flight (backend=ray; 0: as many as the cluster has CPUs). docs/scaling.md
     workers: int = 0
@@ -65,20 +56,36 @@ class EvalArgs:
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.epilog = EPILOG
-    parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME method=NAME num=20 ...")
+    parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME num=20 ...")
 
 
-def result_path(out: str | Path, task: str, method: str, horizon: int, controller: str, split: str = "test",
-                skills: str = "", task_settings: dict[str, Any] | None = None) -> Path:
-    """``OUT/<task>_<method>[_h<H>][_learned][_skills-a-b][_<setting><value>...][_val].jsonl`` (``_skills-...``
-    when ``skills=`` is given, ``_distractors4`` for ``task.distractors=4``: other instances, another file)."""
-    from pasta.execute.skillset import parse_skill_names
+#: run-config keys that do not change an episode's result, left out of the result file's name
+UNNAMED = ("task", "threads", "models", "device")
 
-    name = f"{task}_{method}" + (f"_h{horizon}" if horizon else "") + ("_learned" if controller == "learned" else "")
-    names = parse_skill_names(skills)
-    name += f"_skills-{'-'.join(names)}" if names else ""
-    for key, value in sorted((task_settings or {}).items()):
-        name += f"_{key}{value}"
+
+def result_path(out: str | Path, cfg: Any, settings: list[str], split: str = "test") -> Path:
+    """``OUT/<task>_<method>[_learned][_<setting>...][_val].jsonl``: one file per set of settings.
+
+    ``settings`` are the run-config items the user gave; each becomes a part of the name (``horizon=5`` ->
+    ``_horizon5``, ``skills=cut,push`` -> ``_skills-cut-push``, ``task.distractors=4`` -> ``_distractors4``,
+    ``execute.controller=learned`` -> ``_learned``).
+    """
+    import re
+
+    name = f"{cfg.task.name}_{cfg.method}"
+    parts = []
+    for item in settings:
+        key, _, value = item.partition("=")
+        key = key.strip()
+        if key in UNNAMED or key == "method":
+            continue
+        if key == "execute.controller":
+            parts.append(value.strip())
+            continue
+        leaf = key.split(".")[-1]
+        value = re.sub(r"[^A-Za-z0-9.]+", "-", value.strip()).strip("-")
+        parts.append(f"{leaf}{value}" if key.startswith("task.") or key == "horizon" else f"{leaf}-{value}")
+    name += "".join(f"_{p}" for p in sorted(parts))
     name += "_val" if split == "val" else ""
     return Path(out) / f"{name}.jsonl"
 
@@ -106,74 +113,57 @@ class EvalState:
 
 def eval_init(setup: dict[str, Any]) -> EvalState:
     """Build a worker's :class:`EvalState` from the evaluation's settings (:func:`pasta.distributed.map_jobs`)."""
+    from pasta.commands.run import apply_threads
     from pasta.execute.session import build_session
     from pasta.io.provenance import provenance
 
-    if setup["threads"] > 0:
-        import torch
-
-        torch.set_num_threads(setup["threads"])
-    session = build_session(setup["task"], method=setup["method"], models=setup["models"] or None,
-                            config_overrides=list(setup["config_overrides"]), execute=dict(setup["execute"]),
-                            horizon=setup["horizon"] or None, skeleton=setup["skeleton"], skills=setup["skills"] or None,
-                            task_settings=setup.get("task_settings"))
+    session = build_session(overrides=list(setup["overrides"]))
+    apply_threads(session.cfg)
     sim = session.task.make_sim()  # it starts Taichi, whose settings the provenance records
     # versions, CPU, Taichi arch and compile options: results differ slightly between machines (docs/simulator.md)
     return EvalState(session, sim, provenance(sim_config=session.task.sim_config))
 
 
 def eval_job(state: EvalState, seed: int, attempt: int) -> dict[str, Any]:
-    """One episode's result row (the driver appends it to the result file)."""
+    """One episode's result row (the driver appends it to the result file), or ``{"seed", "refused",
+    "exit_code"}`` when the episode was refused for a reason pasta names (a plan that fails its checks, a
+    planner plugin that failed): nothing of it was executed."""
+    from pasta.core.errors import PastaError
+
     t0 = time.perf_counter()
-    out = state.session.episode(seed, sim=state.sim)
+    try:
+        out = state.session.episode(seed, sim=state.sim)
+    except PastaError as exc:
+        return {"seed": seed, "refused": f"{type(exc).__name__}: {exc}", "exit_code": int(getattr(exc, "exit_code", 2))}
     return {**out.to_dict(), "wall_s": round(time.perf_counter() - t0, 2), "setup": state.session.describe(),
             "provenance": state.machine}
 
 
 def run(args: argparse.Namespace) -> int:
-    from pasta.commands.run import print_skill_warning, split_overrides
-    from pasta.config.overrides import build_many
+    from pasta.commands.run import print_skill_warning, split_command_keys
+    from pasta.config.validate import check_choice, check_int, check_output_dir, check_output_file
     from pasta.distributed import BackendError, map_jobs, split_backend_args
-    from pasta.tasks import fixed_test_seeds, fixed_val_seeds, split_task_settings
+    from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
-    task_settings, items = split_task_settings(list(args.overrides))
-    backend, items = split_backend_args(items)
+    backend, items = split_backend_args(list(args.overrides))
     backend.check()  # a missing Ray fails before any model is loaded
-    own_run, execute_kw, rest = split_overrides(items)
-    mine = [f"{k}={v}" for k, v in own_run.items()]
-    passthrough = []
-    fields = set(EvalArgs.__dataclass_fields__)
-    for item in rest:
-        (mine if item.partition("=")[0].strip() in fields else passthrough).append(item)
-    from pasta.config import load_config
-
-    top = set(load_config([]).keys())
-    for item in passthrough:
-        key = item.partition("=")[0].strip()
-        if key.split(".")[0] not in top:
-            raise ConfigError(f"unknown key '{key}'{did_you_mean(key, sorted(fields | top))}; "
-                              f"pasta eval keys: {', '.join(sorted(fields))}, controller, execute.<field>")
-    opts = build_many(mine, [EvalArgs], command="pasta eval")[0]
-    if opts.num < 1:
-        raise ConfigError(f"num must be >= 1, got {opts.num}")
-    if opts.split not in ("test", "val"):
-        raise ConfigError(f"split must be 'test' or 'val', got {opts.split!r}{did_you_mean(opts.split, ('test', 'val'))}")
-    if any(i.partition("=")[0].strip() == "seed" for i in passthrough):
+    opts, rest = split_command_keys(items, EvalArgs)
+    if not any(i.partition("=")[0] == "task" for i in rest):
+        raise ConfigError("`pasta eval` needs task=NAME (e.g. task=crs)")
+    if any(i.partition("=")[0] == "seed" for i in rest):
         raise ConfigError("pasta eval runs the fixed test seeds (1000, 1001, ...); use num=N, not seed=")
-    from pasta.config.validate import check_int, check_output_dir, check_output_file, check_threads
-
-    check_threads(opts.threads, "threads")
-    check_int(opts.horizon, "horizon", low=0)
+    check_int(opts.num, "num", low=1)
+    check_choice(opts.split, "split", ("test", "val"))
     check_output_dir(opts.out, "out")  # before any model is loaded: a bad out= must not cost an evaluation
     check_int(opts.workers, "workers", low=0)
-    setup = {"task": opts.task, "method": opts.method, "models": opts.models, "config_overrides": list(passthrough),
-             "execute": dict(execute_kw), "horizon": opts.horizon, "skeleton": opts.skeleton, "skills": opts.skills,
-             "threads": opts.threads, "task_settings": dict(task_settings)}
+    from pasta.config import load_config
+
+    load_config(rest)  # every key and value is checked before a model is loaded or a simulator starts
+    setup = {"overrides": list(rest)}
     state = eval_init(setup)  # this process's session: the result path, the summary, the episodes with workers=0
     session, machine = state.session, state.machine
     print_skill_warning(session)
-    path = result_path(opts.out, opts.task, opts.method, opts.horizon, session.exe.controller, opts.split, opts.skills,
-                       {k: getattr(session.task.config, k) for k in task_settings})
+    path = result_path(opts.out, session.cfg, rest, opts.split)
     check_output_file(path, "out")  # e.g. a directory of the result file's name in out=
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
@@ -186,15 +176,19 @@ def run(args: argparse.Namespace) -> int:
                 except (ValueError, KeyError, TypeError) as exc:
                     raise ConfigError(f"out={opts.out}: line {number} of {path} is not a result row ({exc}); "
                                       "fix or delete it, or pass resume=false to start over") from None
+                if _settings(row.get("setup")) != _settings(session.describe()):
+                    raise ConfigError(f"out={opts.out}: {path} holds episodes of other settings (line {number}, "
+                                      f"seed {row['seed']}); pass resume=false to start over, or another out=")
     elif path.exists():
         path.unlink()
     seeds = fixed_test_seeds(opts.num) if opts.split == "test" else fixed_val_seeds(opts.num)
     todo = [s for s in seeds if s not in done]
-    print(f"eval {opts.task} / {opts.method}: {len(seeds)} {opts.split} configs, {len(seeds) - len(todo)} already in {path}",
+    print(f"eval {session.task.name} / {session.method}: {len(seeds)} {opts.split} configs, {len(seeds) - len(todo)} already in {path}",
           file=sys.stderr)
     where = "" if backend.name == "local" and not opts.workers else f" on {backend.describe()}" + (
         f" with {opts.workers} workers" if opts.workers else "")
     failed: dict[int, str] = {}
+    refused: dict[int, int] = {}  # seed -> exit code of an episode refused for a named reason
     try:
         for outcome in map_jobs(eval_init, eval_job, setup, todo, backend=backend, workers=opts.workers,
                                 label="episode", prog="pasta eval", state=state):
@@ -205,6 +199,12 @@ def run(args: argparse.Namespace) -> int:
                       file=sys.stderr, flush=True)
                 continue
             row = outcome.value
+            if "refused" in row:  # nothing of this episode ran: reported, not written
+                failed[seed] = row["refused"]
+                refused[seed] = int(row["exit_code"])
+                print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: refused, {row['refused']}",
+                      file=sys.stderr, flush=True)
+                continue
             with path.open("a") as f:  # one line per finished episode, by this process only: nothing is lost on interruption
                 f.write(json.dumps(row) + "\n")
             done[seed] = row
@@ -218,17 +218,26 @@ def run(args: argparse.Namespace) -> int:
         return 1
     if failed:
         first = min(failed)
-        lines = [f"pasta eval: error: {len(failed)} of {len(seeds)} episodes of {opts.task} / {opts.method} failed "
+        lines = [f"pasta eval: error: {len(failed)} of {len(seeds)} episodes of {session.task.name} / {session.method} failed "
                  f"(the other {len(done)} are in {path}; run the same command again to retry them; no summary written):"]
         lines += [f"  seed {s}: {failed[s].splitlines()[0]}" for s in sorted(failed)[:10]]
         detail = failed[first].partition("\n")[2].rstrip()
         print("\n".join(lines + ([f"seed {first}:", detail] if detail else [])), file=sys.stderr)
-        return 1
+        # every failure a refusal for a named reason: its exit code (2 a plan that failed its checks, 1 a plugin)
+        return max(refused.values()) if len(refused) == len(failed) else 1
     rows = [done[s] for s in seeds]
     summary = {**session.describe(), "split": opts.split, "seeds": [seeds[0], seeds[-1]], **summarise(rows),
                "provenance": machine}
     path.with_suffix(".json").write_text(json.dumps(summary, indent=2) + "\n")
-    print(f"{opts.task} / {opts.method}: normalised improvement {summary['improvement_mean']:.3f} +/- "
+    print(f"{session.task.name} / {session.method}: normalised improvement {summary['improvement_mean']:.3f} +/- "
           f"{summary['improvement_std']:.3f}, success {100 * summary['success_rate']:.0f}% over {len(rows)} configs "
           f"(planning {summary['plan_s_mean']:.1f} s, execution {summary['execute_s_mean']:.1f} s per episode)")
     return 0
+
+
+def _settings(setup: Any) -> Any:
+    """What must match for a result file to be resumed: the resolved run config without its seed."""
+    config = dict((setup or {}).get("config") or {})
+    for key in ("seed", "threads", "device"):  # none of them changes an episode's result
+        config.pop(key, None)
+    return config

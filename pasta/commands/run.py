@@ -1,39 +1,42 @@
-"""``pasta run task=crs seed=S [method=pasta] [controller=...] [log=run.mcap] [summary=run.png]``: one task episode.
+"""``pasta run task=crs seed=S [log=run.mcap] [summary=run.png] [key=value ...]``: one task episode.
 
-Perception (decompose + encode the observation and the goal) -> plan (the configured planner) ->
-execution (learned policies or heuristic controllers) -> score (normalised EMD improvement). The
-models are the shipped ones (:mod:`pasta.weights`) unless ``models=DIR`` names a ``pasta train`` root.
+Perception (decompose + encode the observation and the goal) -> plan (the configured planner) -> check ->
+execution (learned policies or heuristic controllers) -> score (normalised EMD improvement). Every setting
+is a key of the run config (``pasta config task=crs`` prints them all); this command adds ``log=`` and
+``summary=``.
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from pasta.core.errors import ConfigError, did_you_mean
+from pasta.core.errors import ConfigError
 
-HELP = "plan and execute one task instance in the simulator and score it (task=crs seed=S [method=...] [controller=...])"
+HELP = "plan and execute one task instance in the simulator and score it (task=crs seed=S [key=value ...])"
 
 EPILOG = """examples:
   pasta run task=crs seed=1000                                # shipped weights, exhaustive planner, heuristic controllers
   pasta run task=crs seed=1000 log=runs/crs.mcap summary=runs/crs.png
-  pasta run task=crs seed=1000 controller=learned models=models   # your own `pasta train` root
+  pasta run task=crs seed=1000 execute.controller=learned models=models   # your own `pasta train` root
   pasta run task=crs seed=1000 method=flat                    # the Flat 3D baseline
-  pasta run task=crs seed=3 planner=sampling execute.closed_loop=true
-  pasta run task=crs seed=1000 skills=cut,push,roll             # plan with these skills only
-  pasta run task=crs_distractors seed=1000 task.distractors=4  # a task setting: 4 pieces that must stay put
-keys of this command: task method=pasta|sampling|flat|oracle models controller log summary horizon threads=1
-skeleton=auto|true|false task.<setting> (a task config field, e.g. task.distractors=4 for crs_distractors)
-execute.<field> (see docs/policies.md; the skeleton is given for crs_twice only,
-as in the paper), skills=a,b,c (default: every registered skill with trained weights under the models
-root; the others are left out with a warning; not used by method=oracle); every other key=value goes to
-the run config (seed, planner, planner.*)."""
+  pasta run task=crs seed=3 planner=sampling
+  pasta run task=crs seed=1000 skills=cut,push,roll           # plan with these skills only
+  pasta run task=crs_distractors seed=1000 task.distractors=4 # a task setting
+keys of this command: log=FILE.mcap summary=FILE.png; every other key=value is a run-config key (`pasta config
+task=crs` lists them: seed, method, models, horizon, skills, skeleton, planner, planner.*, perception.*,
+check.*, execute.*, sim.*, skill.<name>.*, task.*). controller=X is short for execute.controller=X."""
 
-_OWN = ("task", "models", "controller", "log", "horizon", "skeleton", "method", "summary", "threads", "skills")
+
+@dataclass
+class RunArgs:
+    """The keys of ``pasta run`` that are not run settings."""
+
+    log: str = ""
+    summary: str = ""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -42,64 +45,66 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("overrides", nargs="*", metavar="key=value", help="task=NAME is required")
 
 
-def split_overrides(overrides: list[str]) -> tuple[dict[str, str], dict[str, Any], list[str]]:
-    """``(own keys, execute.* fields as strings, the rest for the run config)``."""
-    from pasta.execute import ExecuteConfig
+def split_command_keys(items: list[str], cls: type) -> tuple[Any, list[str]]:
+    """``(the command's own keys as a cls instance, the run-config items)``; ``controller=X`` is short for
+    ``execute.controller=X``."""
+    from dataclasses import fields
 
+    from pasta.config import GROUPS
+    from pasta.config.overrides import build
+    from pasta.config.run import RunConfig
+    from pasta.core.errors import did_you_mean
+
+    mine = list(cls.__dataclass_fields__)
+    top = [f.name for f in fields(RunConfig)] + [g for g in GROUPS if g not in RunConfig.__dataclass_fields__]
     own: dict[str, str] = {}
-    execute: dict[str, Any] = {}
     rest: list[str] = []
-    fields = {f.name: f for f in dataclasses.fields(ExecuteConfig)}
-    for item in overrides:
+    for item in items:
         key, eq, value = item.partition("=")
         key, value = key.strip(), value.strip()
         if not eq or not key:
             raise ConfigError(f"argument {item!r} must look like key=value")
-        if key in _OWN:
+        if key in mine:
             own[key] = value
-        elif key.startswith("execute."):
-            name = key[len("execute."):]
-            if name not in fields:
-                raise ConfigError(f"unknown key '{key}'{did_you_mean(name, fields)}; execute keys: {', '.join(fields)}")
-            execute[name] = value
+        elif key == "controller":
+            rest.append(f"execute.controller={value}")
+        elif key.split(".")[0] in top:
+            rest.append(f"{key}={value}")
         else:
-            rest.append(item)
-    if "controller" in own:
-        execute["controller"] = own.pop("controller")
-    return own, execute, rest
+            raise ConfigError(f"unknown key '{key}'{did_you_mean(key, mine + top)}; keys of this command: "
+                              f"{', '.join(mine)}; run-config keys: {', '.join(top)} (`pasta config` lists them all)")
+    return build(cls, own), rest
 
 
 def run(args: argparse.Namespace) -> int:
-    from pasta.config import to_yaml
+    from pasta.config.validate import check_output_file
     from pasta.execute.session import build_session
 
-    from pasta.tasks import split_task_settings
-
-    task_settings, items = split_task_settings(list(args.overrides))
-    own, execute_kw, rest = split_overrides(items)
-    if not own.get("task"):
+    opts, rest = split_command_keys(list(args.overrides), RunArgs)
+    if not any(i.partition("=")[0] == "task" for i in rest):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
-    threads, horizon = check_own(own)  # before anything is loaded or computed
-    import torch
+    for key in ("log", "summary"):  # before anything is computed: a finished episode is never lost to a bad path
+        if getattr(opts, key):
+            check_output_file(getattr(opts, key), key)
+    from pasta.config import load_config
 
-    if threads > 0:
-        torch.set_num_threads(threads)  # see `pasta eval`: 1 is fastest on a shared CPU
-    session = build_session(own["task"], method=own.get("method", "pasta"), models=own.get("models"),
-                            config_overrides=rest, execute=execute_kw, horizon=horizon or None,
-                            skeleton=own.get("skeleton", "auto"), skills=own.get("skills") or None,
-                            task_settings=task_settings)
+    load_config(rest)  # every key and value is checked before a model is loaded or a simulator starts
+    session = build_session(overrides=rest)
+    apply_threads(session.cfg)
     print_skill_warning(session)
     seed = int(session.cfg.seed)
     sim = session.task.make_sim()  # starts Taichi, so the log records the runtime's real compile options
     logger = None
-    if own.get("log"):
+    if opts.log:
+        from pasta.config import to_yaml
         from pasta.io import RunLogger
         from pasta.io.provenance import PROVENANCE_RECORD, provenance
 
-        meta = {**{k: str(v) for k, v in session.describe().items()}, "seed": str(seed),
+        setup = session.describe()
+        meta = {"task": session.task.name, "method": session.method, "seed": str(seed), "planner": str(setup["planner"]),
+                "controller": setup["controller"], "skills": ",".join(setup["skills"]),
                 "pasta": __import__("pasta").__version__}
-        logger = RunLogger(own["log"], config_yaml=to_yaml(session.cfg) + "execute: "
-                           + json.dumps(dataclasses.asdict(session.exe)) + "\n", metadata=meta)
+        logger = RunLogger(opts.log, config_yaml=to_yaml(session.cfg), metadata=meta)
     try:
         if logger is not None:  # versions, CPU and Taichi settings, so a run can be compared across machines
             logger.add_metadata(PROVENANCE_RECORD, provenance(sim_config=session.task.sim_config))
@@ -112,36 +117,30 @@ def run(args: argparse.Namespace) -> int:
         logger.close()
     if out.plan is not None:
         print(out.plan.summary())
+        for flag in out.plan.info.get("flags", []):
+            print(f"warning: {flag['kind']}: {flag['message']}", file=sys.stderr)
     if out.result is not None:
         for s in out.result.steps:
-            moved = f" (plan step {s.plan_step + 1})" if s.plan_step not in (-1, s.step) else ""
-            print(f"  executed {s.step + 1}. {s.skill:<6}{moved} on observed pieces {list(s.attended)}: {s.env_steps} steps"
-                  f"{' (stopped: moving away from its goal)' if s.stopped else ' (done)' if s.done else ''}, "
-                  f"improvement {s.normalized_improvement:.3f}")
+            print(f"  {s.describe()}")
         if out.result.diverged:
             print(f"simulation diverged: {out.result.diverged}", file=sys.stderr)
     verdict = "success" if out.success else "failure"
     print(f"task {session.task.name} seed {seed} ({session.method}): normalised improvement {out.improvement:.3f} "
           f"({verdict}, threshold {session.task.threshold})")
-    if own.get("log"):
-        print(f"run logged to {own['log']} (open in Foxglove, or `pasta replay {own['log']}`)")
-    if own.get("summary"):
-        path = write_summary(own["summary"], session, out)
+    if opts.log:
+        print(f"run logged to {opts.log} (open in Foxglove, or `pasta replay {opts.log}`)")
+    if opts.summary:
+        path = write_summary(opts.summary, session, out)
         print(f"summary image: {path}")
     return 0
 
 
-def check_own(own: dict[str, str]) -> tuple[int, int]:
-    """Validate this command's own keys before any work: ``(threads, horizon)``; output paths
-    (``log=``, ``summary=``) must be writable files, so a finished episode is never lost to a bad path."""
-    from pasta.config.validate import check_int, check_output_file, check_threads
+def apply_threads(cfg: Any) -> None:
+    """``threads=N`` (N > 0): torch's CPU threads for this process (1 is fastest on a shared CPU)."""
+    if int(cfg.threads) > 0:
+        import torch
 
-    threads = check_threads(own.get("threads", "1"), "threads")
-    horizon = check_int(own.get("horizon") or 0, "horizon", low=0)
-    for key in ("log", "summary"):
-        if own.get(key):
-            check_output_file(own[key], key)
-    return threads, horizon
+        torch.set_num_threads(int(cfg.threads))
 
 
 def print_skill_warning(session: Any) -> None:
@@ -153,7 +152,6 @@ def print_skill_warning(session: Any) -> None:
 
 def write_summary(path: str | Path, session: Any, out: Any) -> Path:
     """The episode's PNG: initial, each step's decoded sub-goal pieces, final against goal."""
-    from pasta.execute import decode_entities
     from pasta.execute.summary import save_summary
 
     inst = session.task.instance(out.seed)
@@ -161,7 +159,7 @@ def write_summary(path: str | Path, session: Any, out: Any) -> Path:
     if out.plan is not None:
         for h, step in enumerate(out.plan.steps):
             steps.append((f"{h + 1}. {step.skill} (f={step.feasibility:.2f})",
-                          decode_entities(session.encoder, step.subgoal, 400)))
+                          session.encoder.decode_clouds(step.subgoal, 400)))
     title = (f"{session.task.name} seed {out.seed}, {session.method}: normalised improvement {out.improvement:.3f} "
              f"({'success' if out.success else 'failure'})")
     return save_summary(path, initial=inst.init_points, goal=inst.goal, final=out.final_dough, subgoals=steps, title=title)

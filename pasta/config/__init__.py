@@ -1,42 +1,42 @@
 """Run configuration: omegaconf structured configs, package YAML defaults, ``key=value`` overrides.
 
-Group keys (:data:`GROUPS`) pick a registered plugin by name and swap in that plugin's config
-dataclass as the whole section: ``planner=sampling planner.num_samples=2000``. Unknown keys and wrong
-types fail with a :class:`~pasta.core.errors.ConfigError` naming the key and the closest valid key; values
-are range-checked when the config is resolved (:func:`validate_config`: the seed, every ``device`` and
-whatever each section's dataclass checks in its ``__post_init__``), so every command refuses the same
-values before it computes anything.
+The schema is :class:`pasta.config.run.RunConfig`: every setting of a run, in one tree that ``pasta config``
+prints. Group keys (:data:`GROUPS`) pick a registered plugin by name and swap in that plugin's config
+dataclass as the whole section: ``planner=sampling planner.num_samples=2000``, ``task=crs_distractors
+task.distractors=4``. A task may ask for run settings of its own (:attr:`pasta.core.Task.run_defaults`:
+crs_twice plans with the receding-horizon planner and its ground-truth skeleton, as in the paper); they
+sit under the command line. Every registered skill's settings are the section ``skill.<name>``.
+
+Resolution order, later wins: the dataclass defaults <- ``defaults.yaml`` <- the chosen task's
+``run_defaults`` <- ``key=value`` overrides. Unknown keys and wrong types fail with a
+:class:`~pasta.core.errors.ConfigError` naming the key and the closest valid key; values are range-checked
+when the config is resolved (:func:`validate_config`), so every command refuses the same values before it
+computes anything.
 """
 
 from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
 from importlib import resources
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException, ValidationError
 
+from pasta.config.run import METHODS, CheckConfig, ExecuteConfig, PerceptionConfig, RunConfig
 from pasta.core import PluginConfig
 from pasta.core.errors import ConfigError, did_you_mean
-from pasta.plugins.registry import GROUP_KINDS
+
+__all__ = ["GROUPS", "CheckConfig", "ExecuteConfig", "PerceptionConfig", "RunConfig", "default_yaml", "load_config",
+           "section", "to_yaml", "validate_config"]
 
 #: config key -> plugin registry kind whose names it accepts
-GROUPS: dict[str, str] = {kind: kind for kind in GROUP_KINDS}
-
-
-@dataclass
-class RunConfig:
-    """Root of the run configuration. Group sections are typed ``Any`` and filled from the registries;
-    each is a :class:`~pasta.core.PluginConfig` whose ``name`` is the chosen plugin."""
-
-    seed: int = 0
-    device: str = "cpu"
-    planner: Any = None
-    encoder: Any = None
-    cost_model: Any = None
+GROUPS: dict[str, str] = {"planner": "planner", "encoder": "encoder", "cost_model": "cost_model", "task": "task"}
+#: sections built from a dataclass of their own (checked by building them)
+SECTIONS = ("perception", "check", "execute", "sim")
+#: the deepest planning horizon a command accepts: the skeleton enumeration grows with K**H
+MAX_HORIZON = 10
 
 
 def default_yaml() -> dict[str, Any]:
@@ -46,7 +46,7 @@ def default_yaml() -> dict[str, Any]:
 
 
 def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictConfig:
-    """Resolve the run config: dataclass schema <- package YAML <- group choices <- ``overrides``.
+    """Resolve the run config (see the module docstring).
 
     Args:
         overrides: ``["key=value", ...]``; ``GROUP=NAME`` switches a group section.
@@ -58,6 +58,7 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
         plugins = get_plugins()
     defaults = default_yaml()
     choices = {group: defaults.pop(group) for group in GROUPS if group in defaults}
+    given: dict[str, str] = {}
     dotlist = []
     for item in overrides:
         key, eq, value = item.partition("=")
@@ -65,57 +66,123 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
         if not eq or not key:
             raise ConfigError(f"override {item!r} must look like key=value")
         if key in GROUPS:
-            choices[key] = value.strip()
+            given[key] = value.strip()
         elif key.split(".")[0] in GROUPS and key.endswith(".name"):
             raise ConfigError(f"'{key}' is set by the group switch; write {key.split('.')[0]}=NAME instead")
-        else:
-            dotlist.append(f"{key}={value}")
+        else:  # an empty value is the empty string (`skeleton=`), not omegaconf's null
+            dotlist.append(f"{key}={value}" if value.strip() else f"{key}=''")
+    task_defaults: list[str] = []
+    task = given.get("task") or choices.get("task")
+    if task:
+        # the task's own run settings (crs_twice: receding horizon and its skeleton) under the command line
+        for key, value in dict(getattr(plugins.tasks.load(task), "run_defaults", {}) or {}).items():
+            if key in GROUPS:
+                choices[key] = value
+            else:
+                task_defaults.append(f"{key}={value}")
+    choices.update(given)
 
     cfg = OmegaConf.structured(RunConfig)
     for group, choice in choices.items():
+        if not choice:
+            continue
         # a plugin without settings still records its name, so the section always says what was chosen
         chosen = plugins[GROUPS[group]].default_config(choice) or PluginConfig(name=choice)
         cfg = OmegaConf.merge(cfg, {group: OmegaConf.structured(chosen)})
+    skills = {info.name: OmegaConf.structured(plugins.skills.default_config(info.name))
+              for info in plugins.skills if info.config is not None}
+    cfg = OmegaConf.merge(cfg, {"skill": skills})
+    OmegaConf.set_struct(cfg, True)  # unknown keys anywhere are errors, with a suggestion
+    OmegaConf.set_struct(cfg.sim.tool_friction, False)  # a mapping: any tool name (checked below)
     try:
-        cfg = OmegaConf.merge(cfg, defaults, OmegaConf.from_dotlist(dotlist))
+        cfg = OmegaConf.merge(cfg, defaults, OmegaConf.from_dotlist(task_defaults), OmegaConf.from_dotlist(dotlist))
     except (ConfigKeyError, ConfigAttributeError) as exc:
         raise _unknown_key(cfg, exc) from None
     except ValidationError as exc:
-        raise ConfigError(f"config key '{exc.full_key}': {str(exc.msg).splitlines()[0]}") from None
+        given = {k.strip(): v for k, _, v in (i.partition("=") for i in overrides)}
+        key = str(exc.full_key)
+        shown = f"{key}={given[key]}" if key in given else f"config key '{key}'"
+        raise ConfigError(f"{shown}: {_plain(str(exc.msg).splitlines()[0])}") from None
     except OmegaConfBaseException as exc:
         raise ConfigError(f"invalid config: {exc.msg}") from None
-    validate_config(cfg)
+    validate_config(cfg, plugins=plugins)
     return cfg  # type: ignore[return-value]
 
 
-def validate_config(cfg: DictConfig) -> None:
+def validate_config(cfg: DictConfig, *, plugins: Any = None) -> None:
     """Range-check a resolved run config; raise a one-line :class:`ConfigError` naming the key.
 
-    Checks ``seed`` (:func:`~pasta.config.validate.check_seed`), every ``device`` (top level and in each
-    section; :func:`~pasta.config.validate.check_device`) and builds each group section's dataclass once,
-    so its ``__post_init__`` checks (e.g. :class:`pasta.planning.LatentPlannerConfig`) run now.
+    Checks the top-level keys (seed, device, threads, method, horizon, the names in ``skills`` and
+    ``skeleton``), builds every section's dataclass once, so its ``__post_init__`` checks run now, and
+    checks that ``sim.tool_friction`` names registered tools.
     """
-    from pasta.config.validate import check_device, check_seed
+    from pasta.config.validate import check_choice, check_device, check_int, check_seed, check_threads
 
     check_seed(cfg.seed, "seed")
     check_device(cfg.device, "device")
-    for group in GROUPS:
-        node = cfg.get(group)
+    check_threads(cfg.threads, "threads")
+    check_choice(cfg.method, "method", METHODS)
+    if cfg.horizon is not None:
+        check_int(cfg.horizon, "horizon", low=1, high=MAX_HORIZON)
+    if plugins is not None:
+        for key in ("skills", "skeleton"):
+            for name in split_names(cfg[key], key):
+                if not (key == "skeleton" and name == "task") and name not in plugins.skills:
+                    known = plugins.skills.names()
+                    raise ConfigError(f"{key}={cfg[key]}: '{name}' is not a registered skill{did_you_mean(name, known)}; "
+                                      f"registered skills: {', '.join(known)}")
+        if "task" in split_names(cfg.skeleton, "skeleton") and cfg.skeleton.strip() != "task":
+            raise ConfigError(f"skeleton={cfg.skeleton}: 'task' (the task's ground-truth chain) stands alone")
+        tools = plugins.tools.names()
+        for tool in cfg.sim.tool_friction:
+            if tool not in tools:
+                raise ConfigError(f"sim.tool_friction.{tool}: no registered tool '{tool}'{did_you_mean(str(tool), tools)}; "
+                                  f"registered tools: {', '.join(tools)}")
+    for key in (*GROUPS, *SECTIONS):
+        node = cfg.get(key)
         if not isinstance(node, DictConfig):
             continue
         if "device" in node:
-            check_device(node.device, f"{group}.device")
-        try:
-            OmegaConf.to_object(node)
-        except ConfigError as exc:
-            raise ConfigError(_prefixed(str(exc), group)) from None
-        except OmegaConfBaseException as exc:
-            raise ConfigError(f"config section '{group}': {str(exc.msg).splitlines()[0]}") from None
+            check_device(node.device, f"{key}.device")
+        _build(node, key)
+    for name, node in (cfg.get("skill") or {}).items():
+        _build(node, f"skill.{name}")
+
+
+def _build(node: DictConfig, key: str) -> Any:
+    try:
+        return OmegaConf.to_object(node)
+    except ConfigError as exc:
+        raise ConfigError(_prefixed(str(exc), key)) from None
+    except OmegaConfBaseException as exc:
+        raise ConfigError(f"config section '{key}': {str(exc.msg).splitlines()[0]}") from None
+    except (TypeError, ValueError) as exc:  # a plugin dataclass whose own checks raise plain errors
+        raise ConfigError(f"config section '{key}': {exc}") from None
+
+
+#: omegaconf's type messages in the words of pasta's own checks
+_TYPE_WORDS = {"Integer": "must be an integer", "Float": "must be a number", "Boolean": "must be true or false"}
+
+
+def _plain(message: str) -> str:
+    """``Value 'x' of type 'str' could not be converted to Integer`` -> ``must be an integer``."""
+    for word, plain in _TYPE_WORDS.items():
+        if message.endswith(f"could not be converted to {word}"):
+            return plain
+    return message
+
+
+def split_names(value: Any, key: str) -> list[str]:
+    """``"cut,push"`` -> ``["cut", "push"]``; empty -> ``[]``."""
+    return [n.strip() for n in str(value or "").split(",") if n.strip()]
 
 
 def section(cfg: DictConfig, key: str) -> Any:
-    """The config section ``key`` as its dataclass instance (e.g. the chosen planner's config)."""
-    return OmegaConf.to_object(cfg[key])
+    """The config section ``key`` (``"planner"``, ``"execute"``, ``"skill.cut"``) as its dataclass instance."""
+    node = OmegaConf.select(cfg, key)
+    if node is None:
+        raise ConfigError(f"the run config has no section '{key}'")
+    return OmegaConf.to_object(node)
 
 
 def to_yaml(cfg: DictConfig) -> str:

@@ -15,6 +15,7 @@ from pasta.core.errors import (
     MissingComponentError,
     PastaError,
     PluginNotFoundError,
+    PluginRuntimeError,
     PluginValidationError,
     SimulationError,
 )
@@ -22,6 +23,7 @@ from pasta.core.matching import min_cost_matching
 from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons
 from pasta.core.skill import Controller, DemoVariant, Skill, SkillObservation, SkillSpec, ToolPose
+from pasta.core.step import StepMonitor, Stop, stop_reason
 from pasta.core.task import Task, TaskScore
 from pasta.core.tool import ToolSpec
 
@@ -41,11 +43,14 @@ __all__ = [
     "PlanningProblem",
     "PluginConfig",
     "PluginNotFoundError",
+    "PluginRuntimeError",
     "PluginValidationError",
     "SimulationError",
     "Skill",
     "SkillObservation",
     "SkillSpec",
+    "StepMonitor",
+    "Stop",
     "Task",
     "TaskScore",
     "ToolPose",
@@ -54,4 +59,5 @@ __all__ = [
     "enumerate_skeletons",
     "kept_indices",
     "min_cost_matching",
+    "stop_reason",
 ]

@@ -8,12 +8,10 @@ inside the box of training centroids with :meth:`Encoder.clamp`.
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 if TYPE_CHECKING:
+    import numpy as np
     import torch
 
 
@@ -43,22 +41,11 @@ class Encoder(ABC):
     def decode(self, latents: torch.Tensor, num_points: int) -> torch.Tensor:
         """Decode latents ``(K, D)`` to point clouds ``(K, P, 3)`` with ``P = num_points``."""
 
-    @abstractmethod
-    def sample_prior(self, n: int, generator: torch.Generator) -> torch.Tensor:
-        """Draw ``(n, D)`` latents: ``z`` from the prior, ``t`` uniform in the centroid box."""
-
-    def clamp(self, latents: torch.Tensor) -> torch.Tensor:
-        """Return ``latents (..., D)`` with ``t`` clamped into ``[t_low, t_high]`` (differentiable copy)."""
-        import torch
-
-        low = torch.tensor(self.t_low, dtype=latents.dtype, device=latents.device)
-        high = torch.tensor(self.t_high, dtype=latents.dtype, device=latents.device)
-        return torch.cat([latents[..., : self.z_dim], torch.maximum(torch.minimum(latents[..., self.z_dim :], high), low)], -1)
-
-    def decode_clouds(self, latents: torch.Tensor | np.ndarray | Sequence[Sequence[float]],
-                      num_points: int) -> list[np.ndarray]:
-        """Decode latents ``(K, D)`` into ``K`` clouds ``(num_points, 3)`` float32 numpy arrays, without
-        gradients: :meth:`decode` for the consumers of clouds (a policy's sub-goal, a log, an augmentation)."""
+    def decode_clouds(self, latents: Any, num_points: int) -> list[np.ndarray]:
+        """Decode ``(K, D)`` latents (a tensor, also one that tracks gradients, or any array-like) into ``K``
+        float32 clouds ``(num_points, 3)``, without gradients: what the executor hands a controller as a
+        sub-goal, what a summary draws, what the reset pose's decoded-goal augmentation trains on."""
+        import numpy as np
         import torch
 
         if len(latents) == 0:
@@ -71,3 +58,15 @@ class Encoder(ABC):
             out = self.decode(x, num_points)
         out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
         return [np.asarray(c, np.float32) for c in out]
+
+    @abstractmethod
+    def sample_prior(self, n: int, generator: torch.Generator) -> torch.Tensor:
+        """Draw ``(n, D)`` latents: ``z`` from the prior, ``t`` uniform in the centroid box."""
+
+    def clamp(self, latents: torch.Tensor) -> torch.Tensor:
+        """Return ``latents (..., D)`` with ``t`` clamped into ``[t_low, t_high]`` (differentiable copy)."""
+        import torch
+
+        low = torch.tensor(self.t_low, dtype=latents.dtype, device=latents.device)
+        high = torch.tensor(self.t_high, dtype=latents.dtype, device=latents.device)
+        return torch.cat([latents[..., : self.z_dim], torch.maximum(torch.minimum(latents[..., self.z_dim :], high), low)], -1)

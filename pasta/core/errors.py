@@ -35,6 +35,13 @@ class PluginValidationError(PastaError, TypeError):
     """A plugin was found but does not honour its contract (wrong base class, bad cardinality, ...)."""
 
 
+class PluginRuntimeError(PastaError, RuntimeError):
+    """A plugin failed while it worked (it raised, or returned what its contract does not allow). The message
+    names the plugin and its distribution; the command line exits with code 1 (not a usage error)."""
+
+    exit_code = 1
+
+
 class MissingComponentError(PastaError, NotImplementedError):
     """A component a call needs is not available yet (untrained network, unimplemented hook)."""
 

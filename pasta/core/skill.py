@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from pasta.core.errors import InputError, MissingComponentError, PluginValidationError
+from pasta.core.step import Stop
 
 if TYPE_CHECKING:
     import numpy as np
@@ -123,14 +124,28 @@ class ToolPose:
 
 
 class Controller(ABC):
-    """Closed-loop driver of one skill execution: observation in, tool action ``(A,)`` and done out."""
+    """Closed-loop driver of one skill execution: observation in, tool action ``(A,)`` and a stop reason out.
+
+    The step loop (:func:`pasta.tasks.step.run_skill`) and its :class:`~pasta.core.step.StepMonitor` decide
+    when the step ends; the controller says what it knows: that its skill is finished (``Stop.DONE``, or
+    ``True``) or that it used up its own action budget (``Stop.CAP``).
+    """
+
+    #: whether the step monitor watches this controller's progress towards the goal instead of trusting
+    #: its stop: ``True`` for learned policies (their done head can stay low while they push a piece past
+    #: its goal); the monitor then may skip a step whose piece is at its goal, end a step whose piece moves
+    #: away from it again, and run a capped step on while its piece still closes on its goal
+    watch: ClassVar[bool] = False
 
     def reset(self, obs: SkillObservation) -> None:  # noqa: B027 - optional hook
         """Called once before the first :meth:`act` of an execution."""
 
     @abstractmethod
-    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
-        """Return the action ``(A,)`` in ``[-1, 1]`` and whether the skill is done."""
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, Stop | bool | None]:
+        """Return the action ``(A,)`` in ``[-1, 1]`` and ``None`` (go on) or why the controller stops:
+        ``Stop.DONE`` (or ``True``) when its skill is finished, ``Stop.CAP`` when it reached its own action
+        budget. A stop with an all-zero action ends the step before the action is applied; with another
+        action, the action is applied first (the last action of a demonstration)."""
 
 
 class Skill:

@@ -17,6 +17,7 @@ An *instance* (what :meth:`Task.instance` returns) must provide:
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -53,6 +54,10 @@ class Task(ABC):
     #: skills of the ground-truth chain, in order (``("cut", "push", "roll")``)
     skeleton: ClassVar[tuple[str, ...]] = ()
     summary: ClassVar[str] = ""
+    #: run settings this task asks for, ``{key: value}`` in ``pasta config`` terms, under the command line's
+    #: (e.g. ``{"planner": "receding_horizon", "skeleton": "task"}``: plan with that planner and the task's
+    #: own skill chain given, as the paper did for CRS-Twice)
+    run_defaults: ClassVar[Mapping[str, Any]] = {}
 
     @property
     def horizon(self) -> int:

@@ -182,7 +182,7 @@ class DemoWriter:
 
     def generate(self, index: int) -> dict[str, np.ndarray]:
         """The arrays of demonstration ``index`` (see the module docstring)."""
-        from pasta.tasks.executor import run_skill
+        from pasta.tasks.step import run_skill
 
         cfg, sim, skill = self.cfg, self.sim, self.skill
         rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])

@@ -1,27 +1,32 @@
-"""Everything one evaluation method needs to run task episodes: models, planner, controllers.
+"""Everything one evaluation method needs to run task episodes: models, planner, controllers, settings.
 
 ``pasta run`` (one episode) and ``pasta eval`` (a fixed test set) both build a :class:`Session` with
-:func:`build_session` and call :meth:`Session.episode` per seed. Methods (``METHODS``):
+:func:`build_session` from one resolved run config (:mod:`pasta.config`) and call :meth:`Session.episode`
+per seed. Methods (``method=``, :data:`pasta.config.run.METHODS`):
 
-- ``pasta``: entity latents, the configured planner (default exhaustive; receding horizon for
-  ``crs_twice``, as in the paper), the shipped or given weights.
-- ``sampling``: the same with the sampling (CEM) planner.
-- ``flat``: the Flat 3D baseline: the whole scene as one latent (``models/flat``), skills 1 -> 1.
+- ``pasta``: entity latents, the configured planner (a task may ask for its own, :attr:`pasta.core.Task.run_defaults`:
+  crs_twice plans with the receding-horizon planner and its skeleton given, as in the paper), the shipped
+  or given weights;
+- ``flat``: the Flat 3D baseline: the whole scene as one latent (``MODELS/flat``), skills 1 -> 1;
 - ``oracle``: no planning: the task's ground-truth skill chain with the heuristic controllers.
+
+Python use::
+
+    from pasta.execute.session import build_session
+    session = build_session("crs", execute={"controller": "learned"})
+    outcome = session.episode(1000)          # plan, execute, score
 """
 
 from __future__ import annotations
 
-import dataclasses
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from pasta.core.errors import ConfigError, did_you_mean
+from pasta.core.errors import ConfigError
 
-__all__ = ["METHODS", "EpisodeOutcome", "Session", "build_session"]
-
-METHODS = ("pasta", "sampling", "flat", "oracle")
+__all__ = ["EpisodeOutcome", "Session", "as_overrides", "build_session"]
 
 
 @dataclass
@@ -46,25 +51,23 @@ class EpisodeOutcome:
         if self.plan is not None:
             out["skeleton"] = list(self.plan.skills)
             out["plan_score"] = self.plan.score
+            flags = self.plan.info.get("flags")
+            if flags:
+                out["flags"] = flags
         if self.result is not None:
             out["steps"] = [s.to_dict() for s in self.result.steps]
             out["diverged"] = self.result.diverged
-            if self.result.replan_errors:
-                out["replan_errors"] = list(self.result.replan_errors)
         return {**out, **self.info}
 
 
 @dataclass
 class Session:
-    """A task with a method's models, planner and execution settings (see :func:`build_session`)."""
+    """A task with a method's models, planner and settings (see :func:`build_session`)."""
 
     task: Any
-    method: str
-    cfg: Any  # the resolved RunConfig
-    exe: Any  # ExecuteConfig
+    cfg: Any  # the resolved RunConfig (omegaconf)
     models: Path
     horizon: int
-    use_skeleton: bool
     planner: Any = None
     skills: list[Any] = field(default_factory=list)
     encoder: Any = None
@@ -72,17 +75,54 @@ class Session:
     #: how the skill set was chosen (``skills=`` or the trained ones; :mod:`pasta.execute.skillset`)
     skill_choice: Any = None
 
+    @property
+    def method(self) -> str:
+        return str(self.cfg.method)
+
+    @property
+    def exe(self) -> Any:
+        """The ``execute`` section (:class:`pasta.config.ExecuteConfig`)."""
+        from pasta.config import section
+
+        return section(self.cfg, "execute")
+
+    @property
+    def perception(self) -> Any:
+        from pasta.config import section
+
+        return section(self.cfg, "perception")
+
+    @property
+    def check(self) -> Any:
+        from pasta.config import section
+
+        return section(self.cfg, "check")
+
+    @property
+    def planner_name(self) -> str:
+        return str(self.cfg.planner.name)
+
+    def skeleton(self, instance: Any) -> tuple[str, ...] | None:
+        """The skill sequence the planner must use on ``instance`` (``skeleton=``), or ``None`` (it searches)."""
+        from pasta.config import split_names
+
+        names = split_names(self.cfg.skeleton, "skeleton")
+        if names == ["task"]:
+            return tuple(instance.skeleton[: self.horizon])
+        return tuple(names) or None
+
     def describe(self) -> dict[str, Any]:
+        """What a result row records about the run: the method's resolved settings (the whole run config),
+        the models and skills used, and how the feasibility networks were trained."""
         from omegaconf import OmegaConf
 
-        planner = OmegaConf.to_container(self.cfg.planner) if self.method != "oracle" else None
-        return {"task": self.task.name, "method": self.method, "planner": getattr(self.cfg.planner, "name", None),
-                "planner_settings": planner,
-                "controller": "heuristic" if self.method == "oracle" else self.exe.controller,
-                "execute_settings": dataclasses.asdict(self.exe),
-                "horizon": self.horizon, "models": str(self.models), "skeleton_given": self.use_skeleton,
-                "skills": [sk.name for sk in self.skills] if self.method != "oracle" else list(self.task.skeleton),
-                "task_config": dataclasses.asdict(self.task.config),
+        oracle = self.method == "oracle"
+        return {"task": self.task.name, "method": self.method,
+                "planner": None if oracle else self.planner_name,
+                "controller": "heuristic" if oracle else self.exe.controller,
+                "horizon": self.horizon, "models": str(self.models),
+                "skills": list(self.task.skeleton) if oracle else [sk.name for sk in self.skills],
+                "config": OmegaConf.to_container(self.cfg, resolve=True),
                 "feasibility_training": self.feasibility_training()}
 
     def feasibility_training(self) -> dict[str, dict[str, Any]]:
@@ -98,9 +138,26 @@ class Session:
                 out[sk.name] = {k: train[k] for k in ("hard_per_positive", "shift_per_positive") if k in train}
         return out
 
+    def plan(self, seed: int, *, sim: Any = None, planning_seed: int | None = None, **perception: Any) -> Any:
+        """Perceive and plan the task instance ``seed`` without executing it: the
+        :class:`~pasta.execute.episode.Perceived` of :func:`~pasta.execute.episode.perceive_and_plan` (as
+        :meth:`episode` plans it; ``planning_seed`` draws other samples, ``perception`` overrides fields of
+        ``perception.*``)."""
+        import dataclasses
+
+        from pasta.execute.episode import perceive_and_plan
+
+        inst = self.task.instance(seed)
+        sim = sim if sim is not None else self.task.make_sim()
+        sim.set_state(inst.init)
+        return perceive_and_plan(sim.observe().dough, inst.goal, planner=self.planner, planner_name=self.planner_name,
+                                 skills=self.skills, encoder=self.encoder, cost=self.cost, horizon=self.horizon,
+                                 seed=seed if planning_seed is None else planning_seed, skeleton=self.skeleton(inst),
+                                 perception=dataclasses.replace(self.perception, **perception), check=self.check)
+
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:
         """Plan and execute the task instance ``seed`` (generated and cached on first use) and score it."""
-        from pasta.execute.pipeline import run_episode
+        from pasta.execute.episode import run_episode
 
         inst = self.task.instance(seed)
         sim = sim if sim is not None else self.task.make_sim()
@@ -108,13 +165,14 @@ class Session:
             from pasta.tasks.oracle import run_oracle
 
             res = run_oracle(self.task, inst, sim=sim)
-            return EpisodeOutcome(self.task.name, self.method, seed, float(res.score.improvement), bool(res.score.success),
-                                  execute_s=res.wall_s, final_dough=sim.observe().dough)
+            return EpisodeOutcome(self.task.name, self.method, seed, float(res.score.improvement),
+                                  bool(res.score.success), execute_s=res.wall_s, final_dough=sim.observe().dough)
         sim.set_state(inst.init)
-        skeleton = tuple(inst.skeleton[: self.horizon]) if self.use_skeleton else None
-        episode = run_episode(sim, inst.goal, planner=self.planner, skills=self.skills, encoder=self.encoder,
-                              cost=self.cost, horizon=self.horizon, seed=seed, skeleton=skeleton, cfg=self.exe,
-                              logger=logger)
+        episode = run_episode(sim, inst.goal, planner=self.planner, planner_name=self.planner_name, skills=self.skills,
+                              encoder=self.encoder, cost=self.cost, horizon=self.horizon, seed=seed,
+                              skeleton=self.skeleton(inst), cfg=self.exe, perception=self.perception,
+                              check=self.check, emd_points=self.task.config.emd_points,
+                              emd_seed=self.task.config.emd_seed, logger=logger)
         score = self.task.score(episode.result.final_dough, inst)
         plan_s = float(episode.plan.timings.get("total", 0.0))
         exec_s = float(sum(s.wall_s for s in episode.result.steps))
@@ -123,70 +181,67 @@ class Session:
                               final_dough=episode.result.final_dough)
 
 
-def build_session(task_name: str, *, method: str = "pasta", models: str | Path | None = None,
-                  config_overrides: list[str] | None = None, execute: dict[str, Any] | None = None,
-                  horizon: int | None = None, skeleton: str = "auto", plugins: Any = None,
-                  skills: str | list[str] | None = None, task_settings: dict[str, Any] | None = None) -> Session:
-    """Load a method's models and planner for ``task_name``.
+def as_overrides(settings: Mapping[str, Any], prefix: str = "") -> list[str]:
+    """Nested settings as ``key=value`` items: ``{"execute": {"controller": "learned"}}`` ->
+    ``["execute.controller=learned"]`` (a value that is a plugin name for a group key stays a switch)."""
+    out = []
+    for key, value in settings.items():
+        full = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            out += as_overrides(value, f"{full}.")
+        else:
+            out.append(f"{full}={'' if value is None else value}")
+    return out
+
+
+def build_session(task: str | None = None, overrides: Sequence[str] = (), *, plugins: Any = None,
+                  **settings: Any) -> Session:
+    """Load a method's models and planner for a task, from one resolved run config.
 
     Args:
-        method: one of :data:`METHODS`.
-        models: weights root (``pasta train ... out=DIR``); ``None``: the shipped weights.
-        config_overrides: ``key=value`` items of the run config (``seed``, ``planner``, ``planner.*``, ...).
-        execute: :class:`~pasta.execute.ExecuteConfig` fields (strings are parsed).
-        horizon: planning horizon (default: the task's).
-        skeleton: ``auto`` (given for ``crs_twice`` only, as in the paper), ``true`` or ``false``.
-        skills: the skills to plan with (``"cut,push,roll"``); ``None``: every registered skill that has
-            trained weights (:func:`pasta.execute.skillset.choose_skills`; the others are left out and
-            ``session.skill_choice.warning()`` names them).
-        task_settings: task config fields to set (``{"distractors": "4"}``; ``task.<setting>=`` on the
-            command line, :func:`pasta.tasks.split_task_settings`); other instances, other cache entries.
+        task: the task name (or give ``task=NAME`` in ``overrides``).
+        overrides: ``key=value`` items of the run config (``pasta config`` lists them).
+        settings: the same as keyword arguments, nested sections as dicts:
+            ``build_session("crs", execute={"controller": "learned"}, planner="sampling")``.
 
     Raises:
-        ConfigError: the task's ground-truth chain needs a skill that is not chosen.
+        ConfigError: a bad setting, or the task's ground-truth chain needs a skill that is not chosen.
     """
-    from pasta.config import load_config, section
-    from pasta.config.overrides import build
-    from pasta.execute import ExecuteConfig
+    from pasta.config import load_config, section, split_names
     from pasta.plugins import get_plugins
-    from pasta.tasks import get_task
     from pasta.weights import models_root, weight_overrides
 
-    if method not in METHODS:
-        raise ConfigError(f"unknown method '{method}'{did_you_mean(method, METHODS)}; known methods: {', '.join(METHODS)}")
-    task = get_task(task_name, **dict(task_settings or {}))  # unknown task (or setting) -> error listing the known ones
     plugins = plugins or get_plugins()
-    root = models_root(models)
-    rest = list(config_overrides or [])
-    keys = {r.partition("=")[0].strip() for r in rest}
-    if method == "sampling" and "planner" not in keys:
-        rest.append("planner=sampling")
-    if method in ("pasta", "flat") and "planner" not in keys and task_name == "crs_twice":
-        rest.append("planner=receding_horizon")
-    if method != "flat":  # the flat models load from ROOT/flat (pasta.nn.flat.load_flat)
-        rest += weight_overrides(root, rest)
-    cfg = load_config(rest, plugins=plugins)
-    exe = build(ExecuteConfig, dict(execute or {}), command="pasta run/eval")
-    exe = dataclasses.replace(exe, emd_points=task.config.emd_points, emd_seed=task.config.emd_seed)
-    given = str(skeleton).lower()
-    if given not in ("auto", "true", "false", "1", "0", "yes", "no"):
-        raise ConfigError(f"skeleton must be auto, true or false, got {skeleton!r}")
-    use_skeleton = given in ("true", "1", "yes") or (given == "auto" and task_name == "crs_twice")
-    session = Session(task, method, cfg, exe, root, int(horizon or task.horizon), use_skeleton)
-    if method == "oracle":
+    items = ([f"task={task}"] if task else []) + list(overrides) + as_overrides(settings)
+    given = {i.partition("=")[0].strip() for i in items}
+    if "task" not in given:
+        raise ConfigError("a session needs a task: task=NAME (e.g. task=crs)")
+    probe = load_config(items, plugins=plugins)
+    root = models_root(probe.models)
+    if probe.method != "flat":  # the encoder and cost weights under the models root, unless set explicitly
+        items += weight_overrides(root, items)
+    cfg = load_config(items, plugins=plugins)
+    name = str(cfg.task.name)
+    skill_configs = {n: section(cfg, f"skill.{n}") for n in (cfg.get("skill") or {})}
+    task_obj = plugins.tasks.load(name)(section(cfg, "task"), section(cfg, "sim"), skill_configs=skill_configs)
+    horizon = int(cfg.horizon or task_obj.horizon)
+    session = Session(task_obj, cfg, root, horizon)
+    if cfg.method == "oracle":
         return session
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
 
-    choice = choose_skills(skills, root, plugins=plugins, policy=exe.controller == "learned", flat=method == "flat")
-    choice.require(task.skeleton, f"task '{task.name}' (its ground-truth chain)")
-    chosen = [task.skill(n) for n in choice.names]
+    exe = section(cfg, "execute")
+    choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins,
+                           policy=exe.controller == "learned", flat=cfg.method == "flat")
+    choice.require(task_obj.skeleton, f"task '{name}' (its ground-truth chain)")
+    chosen = [task_obj.skill(n) for n in choice.names]
     if exe.controller == "learned":
         from pasta.policy import POLICY_DIR
         from pasta.policy.learned import load_policy
 
         for s in chosen:
             load_policy(root / POLICY_DIR / s.name, s, device=str(cfg.device))
-    if method == "flat":
+    if cfg.method == "flat":
         from pasta.nn.flat import load_flat
 
         encoder, cost, chosen = load_flat(root / "flat", chosen, device=str(cfg.device))
@@ -200,4 +255,3 @@ def build_session(task_name: str, *, method: str = "pasta", models: str | Path |
     session.skills, session.encoder, session.cost = chosen, encoder, cost
     session.planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     return session
-

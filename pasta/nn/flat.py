@@ -3,7 +3,7 @@
 The pipeline is PASTA's, without the decomposition into pieces: the ``flat`` encoder
 (:class:`~pasta.nn.encoders.FlatEncoder`, ``scope == "scene"``) encodes the whole observed cloud,
 each skill's feasibility scores (scene before, scene after), and the cost compares scene latents.
-:func:`pasta.execute.pipeline.perceive` and the executor already treat a ``scene`` encoder as "the
+:func:`pasta.execute.episode.perceive` and the executor already treat a ``scene`` encoder as "the
 whole cloud is one entity".
 
 Models root (default :data:`pasta.nn.FLAT_ROOT`, ``models/flat``), the same sub-directories as an
@@ -16,7 +16,7 @@ entity root, trained with ``out=ROOT flat=true``::
 Use::
 
     encoder, cost, skills = load_flat("models/flat", [task.skill(n) for n in ("cut", "push", "roll")])
-    plan = plan_from_clouds(obs, goal, planner=planner, skills=skills, encoder=encoder, cost=cost, horizon=3)
+    plan = perceive_and_plan(obs, goal, planner=planner, skills=skills, encoder=encoder, cost=cost, horizon=3).plan
 """
 
 from __future__ import annotations

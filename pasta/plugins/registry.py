@@ -44,7 +44,7 @@ KINDS: dict[str, tuple[str, type | None]] = {
 DATA_KINDS = ("tool",)
 
 #: kinds chosen by a config group switch (``planner=NAME``); their configs carry the chosen ``name``
-GROUP_KINDS = ("planner", "encoder", "cost_model")
+GROUP_KINDS = ("planner", "encoder", "cost_model", "task")
 
 
 class PluginLoadWarning(UserWarning):

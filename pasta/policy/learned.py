@@ -3,8 +3,10 @@
 :meth:`LearnedPolicy.controller` returns a :class:`PolicyController` (the
 :class:`~pasta.core.skill.Controller` contract): it subsamples the observed piece, the tool points
 and the sub-goal to the network's point counts with a seeded generator, runs the network and returns
-the action ``(A,)`` in ``[-1, 1]`` and ``done`` (done probability above ``done_threshold``, never
-before ``min_steps`` actions; always at ``max_steps`` actions when that is set).
+the action ``(A,)`` in ``[-1, 1]`` and its stop: ``Stop.DONE`` when the done probability is above
+``done_threshold`` (never before ``min_steps`` actions), ``Stop.CAP`` at ``max_steps`` actions when that is
+set. Its ``watch`` is on: the step monitor (:class:`pasta.tasks.step.GoalMonitor`) watches a learned policy's
+progress instead of trusting its done head alone.
 
 Checkpoints: ``DIR/model.safetensors`` + ``DIR/model.json`` with module ``"policy"`` and config
 ``{"skill", "tool", "network": PolicyConfig}`` (written by :func:`pasta.train.policy.train_policy`
@@ -21,6 +23,7 @@ import torch
 
 from pasta.core.errors import InputError
 from pasta.core.skill import Controller, Skill, SkillObservation
+from pasta.core.step import Stop
 from pasta.policy.network import PolicyConfig, PolicyNet
 
 __all__ = ["MODULE", "LearnedPolicy", "PolicyController", "load_policy"]
@@ -133,6 +136,9 @@ class LearnedPolicy:
 class PolicyController(Controller):
     """Drives one execution of a skill with a :class:`LearnedPolicy`."""
 
+    #: a learned done head can stay low while the policy pushes its piece past the goal: the monitor watches
+    watch = True
+
     def __init__(self, policy: LearnedPolicy, skill: Skill | None = None) -> None:
         self.policy = policy
         self.skill = skill
@@ -140,8 +146,6 @@ class PolicyController(Controller):
         self.steps = 0
         self.first_step = 0
         self.last_done_prob = 0.0
-        #: the last ``done`` came from ``max_steps`` alone (the done head had not fired)
-        self.at_cap = False
 
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None, scene: np.ndarray | None = None) -> Any:
         """The policy's learned start pose (:meth:`LearnedPolicy.approach_pose`) or ``None`` (then the
@@ -164,7 +168,7 @@ class PolicyController(Controller):
             raise InputError(f"policy observation: {what} must be a non-empty (N, 3) array, got shape {cloud.shape}")
         return cloud[self.rng.choice(len(cloud), size=n, replace=len(cloud) < n)]
 
-    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, Stop | None]:
         cfg = self.policy.config
         dough = self._pick(obs.piece, cfg.dough_points, "piece")
         tool = self._pick(obs.tool_points, cfg.tool_points, "tool_points")
@@ -174,10 +178,13 @@ class PolicyController(Controller):
         self.steps += 1
         taken = self.steps - self.first_step
         self.last_done_prob = float(prob[0])
-        done = taken >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold
-        self.at_cap = not done and 0 < self.policy.max_steps <= taken  # done only because of max_steps
-        done = done or self.at_cap
-        return action[0].astype(np.float32), bool(done)
+        if taken >= self.policy.min_steps and self.last_done_prob > self.policy.done_threshold:
+            stop = Stop.DONE
+        elif 0 < self.policy.max_steps <= taken:
+            stop = Stop.CAP  # the done head has not fired, but the policy's own budget is used up
+        else:
+            stop = None
+        return action[0].astype(np.float32), stop
 
 
 def load_policy(directory: str | os.PathLike, skill: Skill, **kwargs: Any) -> LearnedPolicy:

@@ -18,7 +18,7 @@ from pasta.tasks.base import (
     fixed_test_seeds,
     fixed_val_seeds,
 )
-from pasta.tasks.executor import SkillRun, Trajectory, piece_indices, run_skill, skill_observation
+from pasta.tasks.step import SkillRun, Trajectory, piece_indices, run_skill, skill_observation
 
 __all__ = [
     "GroundTruthStep",
@@ -30,7 +30,6 @@ __all__ = [
     "Trajectory",
     "cache_root",
     "get_task",
-    "split_task_settings",
     "piece_indices",
     "run_skill",
     "skill_observation",
@@ -62,25 +61,3 @@ def get_task(name: str, config=None, **overrides) -> Task:
     if overrides:
         cfg = build(type(cfg), {**asdict(cfg), **overrides}, command=f"task '{name}' (task.<setting>=)")
     return registry.create(name, cfg)
-
-
-TASK_PREFIX = "task."
-
-
-def split_task_settings(items: list[str]) -> tuple[dict[str, str], list[str]]:
-    """``task.<setting>=value`` items (a task config field, e.g. ``task.distractors=4``) apart from the rest:
-    ``({setting: value}, the other items)``; the values are checked by :func:`get_task`."""
-    from pasta.core.errors import ConfigError
-
-    settings: dict[str, str] = {}
-    rest: list[str] = []
-    for item in items:
-        key, _, value = item.partition("=")
-        if key.strip().startswith(TASK_PREFIX):
-            setting = key.strip()[len(TASK_PREFIX):]
-            if not setting:
-                raise ConfigError(f"argument {item!r}: name the task setting, e.g. task.threshold=0.8")
-            settings[setting] = value.strip()
-        else:
-            rest.append(item)
-    return settings, rest

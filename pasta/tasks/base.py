@@ -24,7 +24,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from pasta.core import InputError, SimulationError, Skill, TaskScore
+from pasta.core import InputError, PluginConfig, SimulationError, Skill, TaskScore
 from pasta.core import Task as TaskInterface
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.tasks.npz import read_npz, write_npz
@@ -59,8 +59,9 @@ def fixed_val_seeds(num: int = 20) -> list[int]:
 
 
 @dataclass
-class TaskConfig:
-    """Settings shared by every task (subclassed per task).
+class TaskConfig(PluginConfig):
+    """Settings shared by every task (subclassed per task; ``task.<key>=`` on the command line, ``name`` is the
+    chosen task's).
 
     Attributes:
         threshold: success when the normalised improvement exceeds this (strictly).
@@ -211,7 +212,9 @@ class Task(TaskInterface):
 
     Args:
         config: the task's config dataclass (defaults when ``None``).
-        sim_config: a :class:`pasta.sim.SimConfig` (defaults when ``None``).
+        sim_config: a :class:`pasta.sim.SimConfig` (defaults when ``None``; its ``n_particles`` is the task's).
+        skill_configs: ``{skill name: its config}`` for the skills the task builds (``skill.<name>.*`` of the
+            run config); a skill not named gets its registered defaults.
     """
 
     config_class: ClassVar[type] = TaskConfig
@@ -219,11 +222,15 @@ class Task(TaskInterface):
     #: :meth:`score` reads settings of its own adds them
     scoring_fields: ClassVar[tuple[str, ...]] = SCORING_FIELDS
 
-    def __init__(self, config: Any = None, sim_config: Any = None) -> None:
+    def __init__(self, config: Any = None, sim_config: Any = None, *, skill_configs: Any = None) -> None:
+        from dataclasses import replace
+
         from pasta.sim import SimConfig
 
         self.config = config if config is not None else self.config_class()
-        self.sim_config = sim_config if sim_config is not None else SimConfig(n_particles=self.config.n_particles)
+        self.sim_config = (SimConfig(n_particles=self.config.n_particles) if sim_config is None
+                           else replace(sim_config, n_particles=self.config.n_particles))
+        self.skill_configs = dict(skill_configs or {})
         self._skills: dict[str, Skill] = {}
 
     # -- pieces of the machinery ---------------------------------------------------------------
@@ -232,11 +239,12 @@ class Task(TaskInterface):
         return float(self.config.threshold)
 
     def skill(self, name: str) -> Skill:
-        """The registered skill ``name`` with its default config (built once per task object)."""
+        """The registered skill ``name`` with its config (``skill_configs``, else its registered defaults),
+        built once per task object."""
         if name not in self._skills:
             from pasta.plugins import get_plugins
 
-            self._skills[name] = get_plugins().skills.create(name)
+            self._skills[name] = get_plugins().skills.create(name, self.skill_configs.get(name))
         return self._skills[name]
 
     def make_sim(self) -> Any:
@@ -261,7 +269,7 @@ class Task(TaskInterface):
             # its scenes stand up) shape the goals too
             for tool in (skill.tool, *skill.demo_tools()):
                 tools[tool] = repr(plugins.tools.info(tool).spec)
-        config = {k: v for k, v in asdict(self.config).items() if k not in self.scoring_fields}
+        config = {k: v for k, v in asdict(self.config).items() if k not in (*self.scoring_fields, "name")}
         blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config), "skills": skills,
                            "tools": tools, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)
         return hashlib.sha1(blob.encode()).hexdigest()[:12]
@@ -380,7 +388,7 @@ class Generation:
         The produced pieces replace the consumed one in :attr:`pieces` (cut: left part at ``piece``,
         right part inserted after it). Returns the indices of the produced pieces in :attr:`pieces`.
         """
-        from pasta.tasks.executor import run_skill
+        from pasta.tasks.step import run_skill
 
         skill = self.task.skill(skill_name)
         idx = self.pieces[piece]

@@ -189,6 +189,8 @@ class CRSTwiceTask(Task):
     name = "crs_twice"
     config_class = CRSTwiceConfig
     skeleton = ("cut", "cut", "push", "push", "roll", "roll")
+    #: the paper gives CRS-Twice's skeleton to every method and plans it with a receding horizon (3 of 6 steps)
+    run_defaults = {"planner": "receding_horizon", "skeleton": "task"}
     summary = "cut two pieces off a long dough, move both, flatten both (3 pieces, 6 steps)"
 
     def build(self, gen: Generation) -> None:
@@ -211,7 +213,7 @@ class CRSTwiceTask(Task):
 @dataclass
 class CRSDistractorsConfig(TaskConfig):
     """``distractors``: extra pieces that must stay put (0 to :data:`MAX_DISTRACTORS`; ``task.distractors=N``
-    on ``pasta run/eval/oracle``). The test set of the paper's setting is the default, 2."""
+    on ``pasta run`` / ``pasta eval``). The test set of the paper's setting is the default, 2."""
 
     threshold: float = 0.83
     distractors: int = 2

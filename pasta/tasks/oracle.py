@@ -20,7 +20,7 @@ import numpy as np
 
 from pasta.core.decompose import decompose_labels
 from pasta.tasks.base import Score, Task, TaskInstance
-from pasta.tasks.executor import SkillRun, run_skill
+from pasta.tasks.step import SkillRun, run_skill
 
 __all__ = ["OracleResult", "attended_piece", "run_oracle"]
 

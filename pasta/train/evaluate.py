@@ -78,7 +78,7 @@ def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10
 
 def _run(sim: Any, skill: Any, controller: Any, goal: np.ndarray | None, approach: Any = None,
          max_steps: int | None = None) -> tuple[int, bool]:
-    from pasta.tasks.executor import run_skill
+    from pasta.tasks.step import run_skill
 
     obs = sim.observe()
     res = run_skill(sim, skill, controller, np.arange(len(obs.dough)), goal, approach=approach, max_steps=max_steps)

@@ -50,7 +50,7 @@ def encode_scenes(demos: list[Demo], encoder: Any, *, num_points: int = 1000, st
     The states of a demonstration are its first step and the dough after the skill
     (:attr:`~pasta.demos.data.Demo.after`) with ``stride=None``; with ``stride`` every ``stride``-th
     step, then the dough after the skill. Each is resampled to ``num_points`` points (as
-    :func:`pasta.execute.pipeline.perceive` does for a scene encoder) and encoded as ``(1, D)``.
+    :func:`pasta.execute.episode.perceive` does for a scene encoder) and encoded as ``(1, D)``.
     """
     from pasta.core.decompose import resample
 

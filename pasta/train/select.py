@@ -6,7 +6,7 @@ probability exceeds ``done_threshold``, or after ``max_steps`` actions
 the rollout does not depend on the rule (the controller's point subsampling is seeded, the simulator is
 deterministic), so one rollout that never stops, with the simulator state and the done probability
 recorded at every step, scores every rule: restore the state where the rule stops, let the dough settle
-(the idle steps of :func:`pasta.tasks.executor.run_skill`) and measure the normalised improvement.
+(the idle steps of :func:`pasta.tasks.step.run_skill`) and measure the normalised improvement.
 
 Use validation configs (a config stream the test table does not use, e.g. ``seed=2000``), then report
 the chosen rule on the test configs (``seed=1000``) with ``pasta train evaluate`` (:mod:`pasta.train.evaluate`)::
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from pasta.core import Controller, SkillObservation
+from pasta.core import Controller, SkillObservation, Stop
 from pasta.core.errors import ConfigError
 from pasta.core.metrics import emd, normalized_improvement
 
@@ -47,7 +47,7 @@ def stop_index(probs: Sequence[float], actions: Sequence[np.ndarray], threshold:
                max_steps: int = 0) -> int:
     """Env steps taken when the rule ``(threshold, min_steps)`` stops a rollout whose controller output
     done probability ``probs[i]`` and action ``actions[i]`` at its step ``i``: like
-    :func:`~pasta.tasks.executor.run_skill`, a done with a non-zero action is applied then ends the
+    :func:`~pasta.tasks.step.run_skill`, a done with a non-zero action is applied then ends the
     step, an all-zero one ends it without stepping; ``len(probs)`` when the rule never fires.
     ``max_steps`` > 0: the controller also reports done at its ``max_steps``-th action."""
     for i, (p, a) in enumerate(zip(probs, actions)):
@@ -75,12 +75,12 @@ class RecordingController(Controller):
         own = getattr(self.inner, "approach_pose", None)
         return own(*args, **kwargs) if callable(own) else None
 
-    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, Stop | None]:
         self.states.append(self.sim.get_state())
         action, _ = self.inner.act(obs)
         self.probs.append(float(self.inner.last_done_prob))
         self.actions.append(np.asarray(action, np.float32))
-        return action, False
+        return action, None  # never stops: every rule is scored afterwards
 
 
 def sweep(sim: Any, skill: Any, configs: Sequence[Any], thresholds: Sequence[float], min_steps: Sequence[int],
@@ -92,7 +92,7 @@ def sweep(sim: Any, skill: Any, configs: Sequence[Any], thresholds: Sequence[flo
 
     ``skill`` must carry its learned policy (``skill.policy()``). Returns ``{"rules": [[t, m, cap], ...],
     "ni": [[per-config NI for each rule], ...] (configs x rules), "steps": same shape}``."""
-    from pasta.tasks.executor import run_skill
+    from pasta.tasks.step import run_skill
 
     rules = [(float(t), int(m), int(c)) for c in caps for m in min_steps for t in thresholds]
     ni_rows, step_rows = [], []

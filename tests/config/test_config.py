@@ -30,7 +30,7 @@ def test_key_of_another_planner_is_rejected():
 
 
 def test_wrong_type_names_the_key():
-    with pytest.raises(ConfigError, match="config key 'seed'.*could not be converted to Integer"):
+    with pytest.raises(ConfigError, match="seed=abc: must be an integer"):
         load_config(["seed=abc"])
 
 

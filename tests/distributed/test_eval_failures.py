@@ -5,24 +5,22 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import dataclass
 
 from pasta.execute.session import EpisodeOutcome
-
-
-@dataclass
-class _Exe:
-    controller: str = "heuristic"
 
 
 class _FakeSession:
     broken = {1001}
 
     def __init__(self, task):
-        self.task, self.method, self.exe, self.skill_choice = task, "pasta", _Exe(), None
+        from pasta.config import load_config
+
+        self.task, self.method, self.skill_choice = task, "pasta", None
+        self.cfg = load_config(["task=push"])
 
     def describe(self):
-        return {"task": self.task.name, "method": "pasta"}
+        return {"task": self.task.name, "method": "pasta", "planner": "exhaustive", "controller": "heuristic",
+                "skills": ["push"], "config": {"seed": 0}}
 
     def episode(self, seed, logger=None, sim=None):
         if seed in self.broken:

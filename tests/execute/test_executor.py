@@ -1,4 +1,4 @@
-"""The plan executor: attention (pure) and a 1-step plan on a tiny simulated scene."""
+"""The plan executor: attention (pure), goals, the step monitor's decisions and a 1-step plan on a tiny simulated scene."""
 
 import argparse
 
@@ -6,6 +6,8 @@ import numpy as np
 import pytest
 import torch
 
+from pasta.config import PerceptionConfig
+from pasta.core import Controller, Encoder
 from pasta.core.plan import Plan, PlanStep, as_latents
 from pasta.execute import ExecuteConfig, attend, execute_plan
 
@@ -36,11 +38,12 @@ def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path, nudge, 
     path = tmp_path / "run.mcap"
     with RunLogger(path) as log:
         res = execute_plan(sim, one_step_plan(center, 0.03), skills={"nudge": skill}, encoder=box_encoder, goal=goal,
-                           cfg=ExecuteConfig(controller="heuristic", idle_steps=2, decode_points=200), logger=log)
+                           cfg=ExecuteConfig(controller="heuristic", idle_steps=2), perception=PerceptionConfig(num_points=200),
+                           logger=log)
     assert len(res.steps) == 1
     info = res.steps[0]
-    assert info.skill == "nudge" and info.attended == (0,) and info.env_steps == 4 and info.done
-    assert info.piece_points == 300 and not info.skipped
+    assert info.skill == "nudge" and info.attended == (0,) and info.env_steps == 4 and info.ended == "done"
+    assert info.piece_points == 300 and info.attempts == 1
     assert sim.step_count == 6  # 4 controller steps + 2 idle
     np.testing.assert_allclose(sim.tool_pose("pusher")[:3], [0.45, 0.8, 0.12], atol=1e-6)  # parked
     assert np.isfinite(res.normalized_improvement) and res.normalized_improvement > 0  # the dough moved towards -x
@@ -60,70 +63,104 @@ def test_executor_drives_the_learned_policy(nudge, box_encoder, one_step_plan):
     from pasta.policy.pointnet2 import PointNet2Config, SAConfig
     from pasta.sim import SimConfig, Simulator, crs_dough
 
+    class Short(type(nudge)):
+        max_steps = 3  # the skill's step limit
+
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
     sim = Simulator(cfg)
     obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
     torch.manual_seed(0)
     net = PolicyNet(PolicyConfig(action_dim=4, dough_points=64, tool_points=20, goal_points=64, head_widths=(16,),
                                  encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16,))], global_widths=(32,))))
-    skill = nudge
-    skill.attach_policy(LearnedPolicy(net, "nudge", done_threshold=1.0))  # never done: runs to max_steps
-    res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill}, encoder=box_encoder,
-                       goal=obs.dough, cfg=ExecuteConfig(controller="learned", max_steps=3, idle_steps=1, decode_points=64,
-                                                         retries=0, regress_near=0.0))  # the piece starts at this goal
-    assert res.steps[0].env_steps == 3 and not res.steps[0].done and sim.step_count == 4
+    skill = Short()
+    skill.attach_policy(LearnedPolicy(net, "nudge", done_threshold=1.0))  # never done: runs to the skill's limit
+    goal = obs.dough - np.array([0.06, 0.0, 0.0], np.float32)
+    res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.06), skills={"nudge": skill}, encoder=box_encoder,
+                       goal=goal, cfg=ExecuteConfig(controller="learned", idle_steps=1, retries=0),
+                       perception=PerceptionConfig(num_points=64))
+    assert res.steps[0].env_steps == 3 and res.steps[0].ended == "limit" and sim.step_count == 4
+
+
+class _Watched(Controller):
+    """Pushes -x for 4 steps like the nudge's heuristic, but asks the monitor to watch it (as a learned policy does)."""
+
+    watch = True
+
+    def __init__(self):
+        self.i = 0
+
+    def act(self, obs):
+        self.i += 1
+        return np.array([-1.0, 0.0, 0.0, 0.0], np.float32), self.i >= 4
 
 
 @pytest.mark.sim
-def test_skip_near_skips_a_watched_step_whose_piece_is_at_its_goal(nudge, box_encoder, one_step_plan):
+def test_the_monitor_skips_a_watched_step_whose_piece_is_at_its_goal_and_says_so(tmp_path, nudge, box_encoder,
+                                                                                  one_step_plan):
+    from pasta.io import RunLogger, RunReader
     from pasta.sim import SimConfig, Simulator, crs_dough
+
+    class WatchedNudge(type(nudge)):
+        def policy(self):
+            return _Watched()
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
     sim = Simulator(cfg)
     steps = {}
-    for skip in (False, True):
+    for controller, skill in (("learned", WatchedNudge()), ("heuristic", nudge)):
         obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
         # the goal is the observed dough: the step's goal piece is where the piece already is
-        res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": nudge},
-                           encoder=box_encoder, goal=obs.dough,
-                           cfg=ExecuteConfig(controller="heuristic", regress_stop="all", skip_near=skip, idle_steps=1,
-                                             decode_points=64, retries=0))
-        steps[skip] = res.steps[0]
-    assert steps[True].skipped and steps[True].env_steps == 0
-    assert not steps[False].skipped and steps[False].env_steps > 0
-    # only a watched step is skipped: the heuristic controller is not watched by default
-    obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
-    res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": nudge}, encoder=box_encoder,
-                       goal=obs.dough, cfg=ExecuteConfig(controller="heuristic", skip_near=True, idle_steps=1,
-                                                         decode_points=64, retries=0))
-    assert not res.steps[0].skipped
+        with RunLogger(tmp_path / f"{controller}.mcap") as log:
+            res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill},
+                               encoder=box_encoder, goal=obs.dough, logger=log,
+                               cfg=ExecuteConfig(controller=controller, idle_steps=1, retries=0),
+                               perception=PerceptionConfig(num_points=64))
+        steps[controller] = res.steps[0]
+    assert steps["learned"].ended == "at_goal" and steps["learned"].env_steps == 0 and steps["learned"].attempts == 0
+    assert "skipped: the piece already is at its goal" in steps["learned"].describe()
+    lines = [m.text for _, m in RunReader(tmp_path / "learned.mcap").messages("/log")]
+    assert any("nudge skipped: the piece already is at its goal" in m for m in lines), lines
+    # a trusted (heuristic) controller is not watched: it runs to its own done
+    assert steps["heuristic"].ended == "done" and steps["heuristic"].env_steps == 4
 
 
 @pytest.mark.sim
-def test_skip_near_never_skips_a_step_that_changes_the_piece_count(nudge, box_encoder):
+def test_the_monitor_never_skips_a_step_that_changes_the_piece_count(nudge, box_encoder):
     from pasta.core import SkillSpec
     from pasta.sim import SimConfig, Simulator, crs_dough
 
-    class Halve(type(nudge)):  # 1 -> 2, like a cut
+    class WatchedNudge(type(nudge)):
+        def policy(self):
+            return _Watched()
+
+    class Halve(WatchedNudge):  # 1 -> 2, like a cut
         spec = SkillSpec("halve", 1, 2, "pusher", "test skill")
 
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
     sim = Simulator(cfg)
-    skipped = {}
-    for skill, outputs in ((nudge, 1), (Halve(), 2)):
+    ended = {}
+    for skill, outputs in ((WatchedNudge(), 1), (Halve(), 2)):
         obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
         u = [0.0, 0.0, *obs.dough.mean(0).tolist()]
         step = PlanStep(skill.name, (0,), as_latents([u] * outputs), 1.0, as_latents([u] * outputs))
         plan = Plan((step,), as_latents([u]), as_latents([u] * outputs), 0.0, 1.0, "hand", 0)
-        exe = ExecuteConfig(controller="heuristic", regress_stop="all", regress_near=1.0, skip_near=True, goal_pieces=False,
-                            idle_steps=1, decode_points=64, retries=0)  # near 1.0: every piece is "at its goal"
-        res = execute_plan(sim, plan, skills={skill.name: skill}, encoder=box_encoder, goal=obs.dough, cfg=exe)
-        skipped[skill.name] = res.steps[0].skipped
-    assert skipped == {"nudge": True, "halve": False}
+        exe = ExecuteConfig(controller="learned", goal="decoded", idle_steps=1, retries=0)
+        res = execute_plan(sim, plan, skills={skill.name: skill}, encoder=box_encoder, goal=obs.dough, cfg=exe,
+                           perception=PerceptionConfig(num_points=64, unchanged_threshold=1.0))  # every piece "at its goal"
+        ended[skill.name] = res.steps[0].ended
+    assert ended["nudge"] == "at_goal" and ended["halve"] != "at_goal"
 
 
-class _TwoBoxDecoder:
+class _TwoBoxDecoder(Encoder):
     """Decodes latent ``i`` into a box of x-length ``latents[i, 0]`` (uniform points, fixed seed)."""
+
+    z_dim = 0
+
+    def encode(self, points):
+        raise NotImplementedError
+
+    def sample_prior(self, n, generator):
+        raise NotImplementedError
 
     def decode(self, latents, num_points):
         rng = np.random.default_rng(0)
@@ -134,10 +171,10 @@ class _TwoBoxDecoder:
 
 
 def test_decoded_goal_keeps_observation_density_by_volume():
-    from pasta.execute import decode_entities, equalise_density
+    from pasta.execute import equalise_density
 
     latents = np.array([[0.3, 0.0], [0.1, 0.0]], np.float32)
-    same = decode_entities(_TwoBoxDecoder(), latents, 2000)
+    same = _TwoBoxDecoder().decode_clouds(latents, 2000)
     assert [len(c) for c in same] == [2000, 2000]
     big, small = equalise_density(same, 2000)
     assert len(big) == 2000
@@ -182,9 +219,9 @@ def test_anchor_moves_a_cloud_to_its_goal_piece_horizontally():
 
 def test_goal_masses_set_the_point_counts():
     from pasta.core.errors import InputError
-    from pasta.execute import decode_entities, equalise_density
+    from pasta.execute import equalise_density
 
-    same = decode_entities(_TwoBoxDecoder(), np.array([[0.3, 0.0], [0.1, 0.0]], np.float32), 1000)
+    same = _TwoBoxDecoder().decode_clouds(np.array([[0.3, 0.0], [0.1, 0.0]], np.float32), 1000)
     a, b = equalise_density(same, 1000, masses=[200, 600])  # masses, not the decoded volumes
     assert (len(a), len(b)) == (333, 1000)
     with pytest.raises(InputError, match="one positive mass per cloud"):
@@ -202,16 +239,17 @@ def test_goal_pieces_are_matched_by_centroid():
 
 
 @pytest.mark.sim
-def test_executor_retries_a_step_that_hit_its_step_limit(nudge, box_encoder, one_step_plan):
+def test_executor_retries_a_step_that_hit_its_step_limit(tmp_path, nudge, box_encoder, one_step_plan):
+    from pasta.io import RunLogger, RunReader
     from pasta.sim import SimConfig, Simulator, crs_dough
-
-    from pasta.core.skill import Controller
 
     class Forever(Controller):
         def act(self, obs):
-            return np.array([-1.0, 0.0, 0.0, 0.0], np.float32), False  # never reports done
+            return np.array([-1.0, 0.0, 0.0, 0.0], np.float32), None  # never reports done
 
     class Stubborn(type(nudge)):
+        max_steps = 3
+
         def controller(self):
             return Forever()
 
@@ -222,16 +260,21 @@ def test_executor_retries_a_step_that_hit_its_step_limit(nudge, box_encoder, one
         obs = sim.reset(crs_dough(cfg.n_particles, rng=3, floor_y=sim.floor_y, length=0.2))
         center = obs.dough.mean(0).tolist()
         goal = obs.dough - np.array([0.03, 0.0, 0.0], np.float32)
-        res = execute_plan(sim, one_step_plan(center, 0.03), skills={"nudge": Stubborn()}, encoder=box_encoder,
-                           goal=goal, cfg=ExecuteConfig(max_steps=3, idle_steps=1, decode_points=200, retries=retries))
+        with RunLogger(tmp_path / f"r{retries}.mcap") as log:
+            res = execute_plan(sim, one_step_plan(center, 0.03), skills={"nudge": Stubborn()}, encoder=box_encoder,
+                               goal=goal, cfg=ExecuteConfig(idle_steps=1, retries=retries), logger=log,
+                               perception=PerceptionConfig(num_points=200))
         runs[retries] = res.steps[0]
-    assert runs[0].env_steps == 3 and not runs[0].done
-    assert runs[1].env_steps == 6 and not runs[1].done  # one retry from the new observation, then give up
+    assert runs[0].env_steps == 3 and runs[0].ended == "limit" and runs[0].attempts == 1
+    assert runs[1].env_steps == 6 and runs[1].ended == "limit" and runs[1].attempts == 2  # one retry, then give up
+    lines = [m.text for _, m in RunReader(tmp_path / "r1.mcap").messages("/log")]
+    assert any("visibly failed (at the skill's step limit); attempt 2" in m for m in lines), lines
+    assert any("no retries left" in m for m in lines), lines
 
 
 def test_step_dependencies_follow_the_produced_entities():
     from pasta.core.plan import Plan
-    from pasta.execute.executor import step_dependencies
+    from pasta.execute import step_dependencies
 
     def lat(k):
         return tuple((float(i),) * 4 for i in range(k))
@@ -248,7 +291,7 @@ def test_step_dependencies_follow_the_produced_entities():
 
 
 def test_sweep_risk_sees_pieces_in_the_way_and_the_tool_band():
-    from pasta.execute.executor import sweep_risk
+    from pasta.execute import sweep_risk
 
     rng = np.random.default_rng(0)
 
@@ -264,7 +307,7 @@ def test_sweep_risk_sees_pieces_in_the_way_and_the_tool_band():
     assert sweep_risk(piece, np.array([0.8, 0.5]), box(0.5, 0.5)) == 0  # no motion, no sweep
 
 
-class _BoxEncoder:
+class _BoxEncoder(_TwoBoxDecoder):
     """Latent ``(length, cx, cy, cz)`` (``z_dim`` 1) -> a box of that x-length around that centroid."""
 
     z_dim = 1
@@ -293,20 +336,18 @@ def test_step_goal_uses_goal_pieces_their_places_and_masses():
     goal_a = (rng.uniform(-0.1, 0.1, (300, 3)) + [0.25, 0.02, 0.55]).astype(np.float32)  # the rolled piece's goal
     goal_b = (rng.uniform(-0.03, 0.03, (600, 3)) + [0.7, 0.04, 0.5]).astype(np.float32)
     goal, labels = np.concatenate([goal_a, goal_b]), np.repeat([0, 1], [300, 600])
-    cfg = ExecuteConfig(decode_points=1000)
-
-    cut_a, cut_b = step_goal(plan, 0, _BoxEncoder(), cfg, skills=skills, goal=goal, goal_labels=labels)
+    cut_a, cut_b = step_goal(plan, 0, _BoxEncoder(), skills=skills, num_points=1000, goal=goal, goal_labels=labels)
     assert (len(cut_a), len(cut_b)) == (500, 1000)  # masses 300 : 600, not the equal decoded volumes
     np.testing.assert_array_equal(cut_b[:600], goal_b)  # b persists: its goal piece itself
     assert cut_a[:, 0].mean() == pytest.approx(0.3, abs=0.01)  # pushed later: stays where the plan cuts it
-    (push,) = step_goal(plan, 1, _BoxEncoder(), cfg, skills=skills, goal=goal, goal_labels=labels)
+    (push,) = step_goal(plan, 1, _BoxEncoder(), skills=skills, num_points=1000, goal=goal, goal_labels=labels)
     np.testing.assert_allclose(push[:, [0, 2]].mean(0), goal_a[:, [0, 2]].mean(0), atol=1e-5)  # only rolled next: anchored
 
-    plain = ExecuteConfig(decode_points=1000, goal_anchor=False, goal_mass=False)
-    (push,) = step_goal(plan, 1, _BoxEncoder(), plain, skills=skills, goal=goal, goal_labels=labels)
+    # execute.goal=decoded: no goal labels, the plain decodings
+    (push,) = step_goal(plan, 1, _BoxEncoder(), skills=skills, num_points=1000, goal=goal, goal_labels=None)
     np.testing.assert_allclose(push[:, [0, 2]].mean(0), [0.2, 0.6], atol=0.01)  # the decoding's place
-    cut_a, cut_b = step_goal(plan, 0, _BoxEncoder(), plain, skills=skills, goal=goal, goal_labels=labels)
-    assert len(cut_a) == 1000 and len(cut_b) < 1000  # decoded volumes: b's goal piece is the smaller box
+    cut_a, cut_b = step_goal(plan, 0, _BoxEncoder(), skills=skills, num_points=1000, goal=goal, goal_labels=None)
+    assert len(cut_a) == 1000 and len(cut_b) < 1000  # decoded volumes: b's decoding is the smaller box
 
 
 def test_step_goal_masses_add_up_over_a_later_cut():
@@ -323,6 +364,5 @@ def test_step_goal_masses_add_up_over_a_later_cut():
     rng = np.random.default_rng(2)
     pieces = [(rng.uniform(-0.02, 0.02, (n, 3)) + [x, 0.04, 0.5]).astype(np.float32) for n, x in ((100, 0.2), (200, 0.4), (600, 0.7))]
     goal, labels = np.concatenate(pieces), np.repeat([0, 1, 2], [100, 200, 600])
-    first, second = step_goal(plan, 0, _BoxEncoder(), ExecuteConfig(decode_points=1000), skills=skills, goal=goal,
-                              goal_labels=labels)
+    first, second = step_goal(plan, 0, _BoxEncoder(), skills=skills, num_points=1000, goal=goal, goal_labels=labels)
     assert (len(first), len(second)) == (500, 1000)  # (100 + 200) : 600

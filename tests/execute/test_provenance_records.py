@@ -4,25 +4,22 @@ from __future__ import annotations
 
 import argparse
 import json
-from dataclasses import dataclass
-
 from pasta.execute.session import EpisodeOutcome
 
 
-@dataclass
-class _Exe:
-    controller: str = "heuristic"
+SETUP = {"task": "push", "method": "pasta", "planner": "exhaustive", "controller": "heuristic", "skills": ["push"],
+         "config": {"seed": 4}}
 
 
 class _FakeSession:
     def __init__(self, task):
         from pasta.config import load_config
 
-        self.task, self.method, self.exe, self.skill_choice = task, "pasta", _Exe(), None
-        self.cfg = load_config(["seed=4"])
+        self.task, self.method, self.skill_choice = task, "pasta", None
+        self.cfg = load_config(["task=push", "seed=4"])
 
     def describe(self):
-        return {"task": self.task.name, "method": "pasta"}
+        return dict(SETUP)
 
     def episode(self, seed, logger=None, sim=None):
         return EpisodeOutcome(self.task.name, "pasta", seed, improvement=0.9, success=True)
@@ -71,6 +68,7 @@ def test_eval_resume_refuses_a_damaged_results_file(tmp_path, monkeypatch):
     from pasta.core.errors import ConfigError
 
     _fake(monkeypatch)
-    (tmp_path / "push_pasta.jsonl").write_text('{"seed": 1000, "improvement": 0.5, "success": false}\n{"seed": 10')
+    first = {"seed": 1000, "improvement": 0.5, "success": False, "setup": SETUP}
+    (tmp_path / "push_pasta.jsonl").write_text(json.dumps(first) + '\n{"seed": 10')
     with pytest.raises(ConfigError, match=r"line 2 of .*push_pasta.jsonl is not a result row .*resume=false"):
         eval_cmd.run(argparse.Namespace(overrides=["task=push", "num=2", f"out={tmp_path}"]))

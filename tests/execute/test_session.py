@@ -6,7 +6,8 @@ import json
 import pytest
 
 from pasta.core.errors import ConfigError
-from pasta.execute.session import METHODS, EpisodeOutcome, build_session
+from pasta.config.run import METHODS
+from pasta.execute.session import EpisodeOutcome, build_session
 from pasta.weights import ROOT, models_root, shipped
 
 
@@ -25,23 +26,26 @@ def test_session_loads_the_shipped_weights_by_default():
     assert session.cfg.planner.name == "exhaustive" and session.exe.controller == "heuristic"
     assert session.encoder.latent_dim > 3
     assert all(s.feasibility_model is not None for s in session.skills)
-    assert build_session("crs_twice").cfg.planner.name == "receding_horizon"  # as in the paper
-    assert build_session("crs_twice").use_skeleton and not session.use_skeleton
-    assert build_session("crs", method="sampling").cfg.planner.name == "sampling"
+    twice = build_session("crs_twice")  # the task asks for the paper's planner and its skeleton given
+    assert twice.cfg.planner.name == "receding_horizon" and twice.cfg.skeleton == "task"
+    inst = type("Instance", (), {"skeleton": ["cut", "cut", "push", "push", "roll", "roll"]})()
+    assert twice.skeleton(inst) == tuple(inst.skeleton) and session.skeleton(inst) is None
+    searched = build_session("crs_twice", planner="prefix_beam", skeleton="")  # the command line wins
+    assert searched.cfg.planner.name == "prefix_beam" and searched.skeleton(inst) is None
+    assert build_session("crs", planner="sampling").cfg.planner.name == "sampling"
 
 
 def test_session_rejects_unknown_method_task_and_skeleton():
-    with pytest.raises(ConfigError, match="did you mean 'pasta'.*known methods: " + ", ".join(METHODS)):
+    with pytest.raises(ConfigError, match="method=pastaa: must be one of " + ", ".join(METHODS) + "; did you mean 'pasta'"):
         build_session("crs", method="pastaa")
-    with pytest.raises(Exception, match="crs"):
+    with pytest.raises(Exception, match="did you mean 'crs'"):
         build_session("crss")
-    with pytest.raises(ConfigError, match="skeleton"):
+    with pytest.raises(ConfigError, match="skeleton=maybe: 'maybe' is not a registered skill"):
         build_session("crs", method="oracle", skeleton="maybe")
 
 
 def test_session_skills_choose_the_set_and_the_task_chain_must_fit(tmp_path, capsys):
     from pasta.commands.run import print_skill_warning
-    from pasta.core.errors import PluginNotFoundError
 
     session = build_session("crs", skills="cut,push,roll")
     assert [s.name for s in session.skills] == ["cut", "push", "roll"] and session.describe()["skills"] == ["cut", "push", "roll"]
@@ -52,7 +56,8 @@ def test_session_skills_choose_the_set_and_the_task_chain_must_fit(tmp_path, cap
 
     known = get_plugins().skills.names()  # every registered skill, the built-ins among them
     assert {"cut", "push", "roll"} <= set(known)
-    with pytest.raises(PluginNotFoundError, match=f"did you mean 'push'.*known skills: {', '.join(known)}$"):
+    with pytest.raises(ConfigError, match=f"'pusj' is not a registered skill; did you mean 'push'.*registered skills: "
+                                          f"{', '.join(known)}$"):
         build_session("crs", skills="cut,pusj,roll")
     # a models root where roll has no feasibility network: left out with one warning line, so crs cannot run
     for rel in ("feasibility/cut", "feasibility/push"):
@@ -67,13 +72,17 @@ def test_session_skills_choose_the_set_and_the_task_chain_must_fit(tmp_path, cap
 
 
 class _FakeSession:
-    def __init__(self, task):
-        self.task, self.method, self.exe = task, "pasta", argparse.Namespace(controller="heuristic")
+    def __init__(self, task, overrides=()):
+        from pasta.config import load_config
+
+        self.task, self.method = task, "pasta"
+        self.cfg = load_config([f"task={task.name}", *overrides])
         self.skill_choice = None
         self.calls = []
 
     def describe(self):
-        return {"task": self.task.name, "method": "pasta"}
+        return {"task": self.task.name, "method": "pasta", "planner": "exhaustive", "controller": "heuristic",
+                "skills": [], "config": {"seed": 0, "planner": "exhaustive"}}
 
     def episode(self, seed, sim=None):
         self.calls.append(seed)
@@ -117,5 +126,5 @@ def test_eval_validation_split_runs_its_own_seeds_into_its_own_file(tmp_path, mo
     assert fake.calls == [2000, 2001]
     assert not (tmp_path / "crs_pasta.jsonl").exists()
     assert json.loads((tmp_path / "crs_pasta_val.json").read_text())["split"] == "val"
-    with pytest.raises(ConfigError, match="split must be 'test' or 'val'"):
+    with pytest.raises(ConfigError, match="split=train: must be one of test, val"):
         eval_cmd.run(argparse.Namespace(overrides=["task=crs", "split=train", f"out={tmp_path}"]))

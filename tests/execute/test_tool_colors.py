@@ -3,7 +3,7 @@
 import numpy as np
 from matplotlib.colors import to_rgba
 
-from pasta.execute.executor import _Log, _tool_rgba
+from pasta.execute.runlog import ExecutionLog as _Log, _tool_rgba
 from pasta.io import RunLogger, RunReader
 from pasta.io.schemas import DEFAULT_TOOL_COLOR
 from pasta.plugins import get_plugins

@@ -15,22 +15,21 @@ from pasta.cli import main
 from pasta.core.errors import SimulationError
 from pasta.io import RunReader, partial_path
 
-# shipped weights, heuristic controllers, a short optimisation and short skills: ~10 s of CPU
-RUN = ["run", "task=crs", "seed=1000", "planner.iterations=10", "execute.max_steps=10", "execute.idle_steps=2",
-       "execute.retries=0"]
+# shipped weights, heuristic controllers, a short optimisation: ~10 s of CPU
+RUN = ["run", "task=crs", "seed=1000", "planner.iterations=10", "execute.idle_steps=2", "execute.retries=0"]
 
 
 @pytest.mark.sim
 def test_pasta_run_that_raises_after_a_step_logs_the_failure(tmp_path, monkeypatch, capsys):
-    from pasta.execute import executor
+    from pasta.execute.runlog import ExecutionLog
 
-    original = executor._Log.step_end
+    original = ExecutionLog.step_end
 
     def step_end_then_fail(self, info):
         original(self, info)
         raise SimulationError(f"injected after step {info.step}")
 
-    monkeypatch.setattr(executor._Log, "step_end", step_end_then_fail)
+    monkeypatch.setattr(ExecutionLog, "step_end", step_end_then_fail)
     target = tmp_path / "run.mcap"
     assert main([*RUN, f"log={target}"]) == 2
     assert "injected after step 0" in capsys.readouterr().err

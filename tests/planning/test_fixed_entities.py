@@ -114,21 +114,24 @@ def test_pipeline_keeps_pieces_at_their_goal_out_of_a_real_plan():
     """Shipped networks, clouds as `pasta run` sees them: a crs-like dough and goal plus 3 cubes that sit at
     their goal pieces; the plan attends none of the cubes (they are found and kept out), and with the
     matching off (`unchanged_threshold=0`) nothing is kept out."""
-    from pasta.execute.pipeline import plan_from_clouds
+    import dataclasses
+
+    from pasta.execute.episode import perceive_and_plan
     from pasta.execute.session import build_session
 
-    s = build_session("crs", config_overrides=["planner.num_samples=16", "planner.iterations=20"])
+    s = build_session("crs", ["planner.num_samples=16", "planner.iterations=20"])
     rng = np.random.default_rng(0)
     cubes = [box(c, (0.06, 0.06, 0.06), 150, rng) for c in ((0.3, 0.04, 0.13), (0.55, 0.04, 0.87), (0.75, 0.04, 0.13))]
     obs = np.concatenate([box((0.775, 0.05, 0.5), (0.25, 0.08, 0.07), 700, rng), *cubes])
     goal = np.concatenate([box((0.825, 0.05, 0.5), (0.15, 0.08, 0.07), 420, rng),
                            box((0.27, 0.02, 0.5), (0.25, 0.018, 0.12), 280, rng), *cubes])
-    plan = plan_from_clouds(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost, horizon=3, seed=0)
+    plan = perceive_and_plan(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost, horizon=3,
+                             seed=0, perception=s.perception).plan
     cube_ids = {i for i, _ in plan.info["fixed"]}
     assert len(cube_ids) == 3  # every cube found at its goal piece, the dough not
     assert not attended_origins(plan, len(plan.initial)) & cube_ids
-    off = plan_from_clouds(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost, horizon=3,
-                           seed=0, unchanged_threshold=0)
+    off = perceive_and_plan(obs, goal, planner=s.planner, skills=s.skills, encoder=s.encoder, cost=s.cost, horizon=3,
+                            seed=0, perception=dataclasses.replace(s.perception, unchanged_threshold=0.0)).plan
     assert "fixed" not in off.info
 
 

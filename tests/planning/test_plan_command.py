@@ -36,7 +36,8 @@ def _clouds(tmp_path):
     return tmp_path / "obs.npy", tmp_path / "goal.ply"
 
 
-ARGS = ["encoder=analytic", "cost_model=analytic", "skills=split,move,flatten", "num_points=300", "min_points=20",
+ARGS = ["encoder=analytic", "cost_model=analytic", "skills=split,move,flatten", "perception.num_points=300",
+        "perception.min_points=20",
         "planner.num_samples=128", "planner.iterations=100"]
 
 
@@ -104,7 +105,7 @@ def test_skill_choice_is_the_same_rule_as_run(tmp_path, analytic_plugins, monkey
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skills=split,move,cut"]) == 2
     assert "skill 'cut' has no feasibility network" in capsys.readouterr().err
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skills=split,mvoe"]) == 2
-    assert "unknown skill 'mvoe'; did you mean 'move'?" in capsys.readouterr().err
+    assert "skills=split,mvoe: 'mvoe' is not a registered skill; did you mean 'move'?" in capsys.readouterr().err
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={tmp_path / 'x'}", *args, "skeleton=cut,move,flatten"]) == 2
     assert "skeleton= needs the skills cut, move, flatten; left out: 'cut': feasibility network" in capsys.readouterr().err
 
@@ -127,10 +128,11 @@ def test_output_path_is_checked_before_anything_is_computed(tmp_path, analytic_p
 
 
 @pytest.mark.parametrize("item, message", [
-    ("threads=abc", "threads=abc: must be an integer >= 0"),
+    ("threads=abc", "threads=abc: must be an integer"), ("threads=-1", "threads=-1: must be an integer in [0, 1024]"),
     ("horizon=11", "horizon=11: must be an integer in [1, 10]"),
-    ("num_points=8", "num_points=8: must be an integer in [16, 10000]"), ("min_points=0", "min_points=0: must be"),
-    ("max_points=10", "max_points=10: must be >= min_points (20)"),
+    ("perception.num_points=8", "perception.num_points=8: must be an integer in [16, 10000]"),
+    ("perception.min_points=0", "perception.min_points=0: must be"),
+    ("perception.max_points=10", "perception.max_points=10: must be >= perception.min_points (20)"),
 ])
 def test_command_keys_are_range_checked(tmp_path, analytic_plugins, capsys, item, message):
     obs, goal = _clouds(tmp_path)
@@ -179,9 +181,10 @@ def test_large_clouds_are_voxel_downsampled_with_a_note(tmp_path, analytic_plugi
     dense = np.clip(pts[rng.integers(0, len(pts), 40_000)] + rng.normal(0, 0.003, (40_000, 3)), 0, 1)
     np.save(tmp_path / "dense.npy", dense.astype(np.float32))
     out = tmp_path / "o"
-    assert main(["plan", f"obs={tmp_path / 'dense.npy'}", f"goal={goal}", f"out={out}", *ARGS, "max_points=3000"]) == 0
+    assert main(["plan", f"obs={tmp_path / 'dense.npy'}", f"goal={goal}", f"out={out}", *ARGS,
+                 "perception.max_points=3000"]) == 0
     err = capsys.readouterr().err
-    assert "note: obs cloud has 40,000 points, more than max_points=3,000: voxel-downsampled" in err
+    assert "note: obs cloud has 40,000 points, more than perception.max_points=3,000: voxel-downsampled" in err
     assert "goal cloud" not in err  # 600 points: untouched
     assert Plan.from_json((out / "plan.json").read_text()).skills == ("split", "move", "flatten")
 
@@ -288,7 +291,7 @@ def test_contract_checks_and_exit_codes(tmp_path, analytic_plugins, capsys):
     flags = json.loads((out / "plan.json").read_text())["info"]["flags"]
     assert [f["kind"] for f in flags] == ["unreachable"]
     for bad, message in [("units=cm", "units=cm: must be one of m, mm"), ("up=x", "up=x"),
-                         ("decompose.eps=0", "decompose.eps=0"), ("preprocess=kinect", "preprocess=kinect"),
+                         ("perception.eps=0", "perception.eps=0"), ("preprocess=kinect", "preprocess=kinect"),
                          ("preprocess.table=plane", "preprocess.table=plane"), (f"transform={obs}", "4x4"),
                          ("preprocess.crop_low=0,0", "three comma-separated"),
                          ("preprocess.crop_high=0,0,0", "low < high")]:
@@ -300,7 +303,7 @@ def test_decompose_keys_reach_dbscan(tmp_path, analytic_plugins):
     obs, goal = _clouds(tmp_path)
     out = tmp_path / "o"
     # a radius that spans the whole scene merges the goal's two pieces: a plan far from the real goal
-    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "decompose.eps=0.9"]) == 3
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "perception.eps=0.9"]) == 3
     assert json.loads((out / "entities.json").read_text())["goal"] == 1  # planned 1 -> 1, flagged unreachable
-    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "decompose.min_samples=3"]) == 0
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "perception.min_samples=3"]) == 0
     assert json.loads((out / "plan.json").read_text())["info"]["input"]["decompose"]["min_samples"] == 3

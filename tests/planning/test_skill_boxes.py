@@ -83,13 +83,13 @@ def test_plans_without_boxes_are_unchanged():
 
 
 def test_pieces_may_lie_in_any_one_box_not_in_their_hull():
-    from pasta.commands.plan import check_training_box, latent_distances
+    from pasta.execute.episode import check_training_box, latent_distances
     from pasta.core.errors import InputError
 
     p = with_box(analytic_problem())
     boxes = training_boxes(p.encoder, p.skills)
     raised = torch.tensor([[1.0, 0.0, 0.4, 0.4, 0.5]])  # inside the raised box only
-    check_training_box(raised, p.encoder, "goal", 0.0, boxes=boxes)
+    assert check_training_box(raised, p.encoder, "goal", 0.0, boxes=boxes) == []  # no flag: inside a box
     assert latent_distances(raised, p.encoder, boxes)[0]["t_outside"] == 0.0
     # between the heights of both boxes: inside their hull, outside each (0.07 above the encoder's, 0.03
     # under the raised one, the nearest)

@@ -8,7 +8,7 @@ import pytest
 from pasta.core.decompose import decompose_labels
 from pasta.plugins import get_plugins
 from pasta.plugins.testing import SkillContract
-from pasta.tasks.executor import run_skill
+from pasta.tasks.step import run_skill
 
 
 class TestLift(SkillContract):

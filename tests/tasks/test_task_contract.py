@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from pasta.core import PluginValidationError, Task, TaskScore
+from pasta.core import PluginConfig, PluginValidationError, Task, TaskScore
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.plugins import PluginInfo, hookimpl
 from pasta.plugins.analytic import AnalyticPlugin
@@ -30,7 +30,7 @@ class ToyInstance:
 
 
 @dataclass
-class ToyConfig:
+class ToyConfig(PluginConfig):  # a task's settings are a group of the run config (task=NAME): a PluginConfig
     threshold: float = 0.8
     shift: float = 0.3
 

@@ -8,16 +8,17 @@ import pytest
 from pasta.cli import main
 from pasta.commands.eval import result_path
 from pasta.core.errors import ConfigError
-from pasta.tasks import get_task, split_task_settings
+from pasta.tasks import get_task
 from pasta.tasks.library import DISTRACTOR_GAP, MAX_DISTRACTORS, distractor_boxes
 
 
-def test_settings_are_split_from_the_other_keys():
-    settings, rest = split_task_settings(["task=crs_distractors", "task.distractors=4", "num=3", "task.threshold=0.8"])
-    assert settings == {"distractors": "4", "threshold": "0.8"}
-    assert rest == ["task=crs_distractors", "num=3"]
-    with pytest.raises(ConfigError, match="name the task setting"):
-        split_task_settings(["task.=4"])
+def test_task_settings_are_a_section_of_the_run_config():
+    from pasta.config import load_config, section
+
+    cfg = load_config(["task=crs_distractors", "task.distractors=4", "task.threshold=0.8"])
+    assert cfg.task.name == "crs_distractors" and section(cfg, "task").distractors == 4
+    with pytest.raises(ConfigError, match="did you mean 'task.distractors'"):
+        load_config(["task=crs_distractors", "task.distractor=4"])
 
 
 def test_string_settings_are_typed_and_checked():
@@ -57,22 +58,26 @@ def test_distractors_alternate_walls_and_keep_apart(num):
 
 
 def test_result_file_names_the_settings(tmp_path):
-    plain = result_path(tmp_path, "crs_distractors", "pasta", 0, "heuristic")
-    four = result_path(tmp_path, "crs_distractors", "pasta", 0, "heuristic", task_settings={"distractors": 4})
-    assert plain.name == "crs_distractors_pasta.jsonl"
-    assert four.name == "crs_distractors_pasta_distractors4.jsonl"
-    assert result_path(tmp_path, "crs_distractors", "pasta", 0, "learned", "val", "", {"distractors": 1}).name == \
-        "crs_distractors_pasta_learned_distractors1_val.jsonl"
+    from pasta.config import load_config
+
+    def name(*items, split="test"):
+        return result_path(tmp_path, load_config(["task=crs_distractors", *items]), list(items), split).name
+
+    assert name() == "crs_distractors_pasta.jsonl"
+    assert name("task.distractors=4") == "crs_distractors_pasta_distractors4.jsonl"
+    assert name("execute.controller=learned", "task.distractors=1", split="val") == \
+        "crs_distractors_pasta_distractors1_learned_val.jsonl"
+    assert name("skills=cut,push,roll", "horizon=4", "threads=1") == "crs_distractors_pasta_horizon4_skills-cut-push-roll.jsonl"
 
 
 def test_bad_settings_fail_before_any_work(tmp_path, capsys):
     assert main(["eval", "task=crs_distractors", "task.distractor=4", "num=1", f"out={tmp_path}"]) == 2
-    assert "did you mean 'distractors'" in capsys.readouterr().err
+    assert "did you mean 'task.distractors'" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())  # nothing written
     assert main(["run", "task=crs_distractors", "task.distractors=9"]) == 2
     assert "distractors must be in 0..6" in capsys.readouterr().err
-    assert main(["oracle", "task=crs", "task.distractors=1", "num=1"]) == 2  # crs has no such setting
-    assert "unknown key 'distractors'" in capsys.readouterr().err
+    assert main(["eval", "task=crs", "method=oracle", "task.distractors=1", "num=1"]) == 2  # crs has no such setting
+    assert "unknown config key 'task.distractors'" in capsys.readouterr().err
 
 
 @pytest.mark.sim

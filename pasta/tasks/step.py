@@ -2,7 +2,8 @@
 
 :func:`run_skill` is the one place where a skill meets the simulator; the task generators (experts),
 the oracle (heuristic controllers), demonstration recording and the plan executor (learned policies)
-all go through it. The attended piece is tracked by particle identity: ``piece`` selects points of the
+all go through it, and one step monitor (:class:`GoalMonitor`, the :class:`pasta.core.StepMonitor`
+contract) decides for all of them when a step ends. The attended piece is tracked by particle identity: ``piece`` selects points of the
 observed cloud (the simulator observes a fixed particle subset), and every env step the controller
 sees the current positions of exactly those points.
 """
@@ -15,10 +16,10 @@ from typing import Any
 
 import numpy as np
 
-from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
+from pasta.core import Controller, InputError, Skill, SkillObservation, StepMonitor, Stop, ToolPose, stop_reason
 from pasta.core.metrics import chamfer
 
-__all__ = ["RegressionStop", "SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
+__all__ = ["GoalMonitor", "SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
 
 
 @dataclass
@@ -56,61 +57,68 @@ class SkillRun:
     Attributes:
         skill: skill name.
         steps: controller env steps taken (idle steps not counted).
-        done: the controller reported done (``False``: it hit ``max_steps``).
+        ended: why the step ended (:class:`~pasta.core.Stop`).
         approach: the tool pose the step started from.
         wall_s: wall-clock seconds of the whole step (approach to park).
         trajectory: the recorded steps, when asked for.
-        stopped: the step was ended by a :class:`RegressionStop` (``done`` is then ``True`` too).
     """
 
     skill: str
     steps: int
-    done: bool
+    ended: Stop
     approach: ToolPose
     wall_s: float
     trajectory: Trajectory | None = None
-    stopped: bool = False
+
+    @property
+    def done(self) -> bool:
+        """The step ended as its controller or its monitor meant it to, not at the skill's step limit."""
+        return self.ended is not Stop.LIMIT
 
 
 @dataclass
-class RegressionStop:
-    """Ends a controller's step once its piece has moved away from the sub-goal again.
+class GoalMonitor(StepMonitor):
+    """The step monitor of every skill step (:class:`pasta.core.StepMonitor`).
 
-    A closed-loop check for controllers whose own stop is unreliable: a learned push whose done head
-    stays low pushes on past its goal, and pushing cannot pull the piece back. Every env step the
-    Chamfer distance ``d`` between the attended piece and the step's goal is measured (on at most
-    ``points`` fixed points of each); once the step has made real progress (its best distance is below
-    ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for ``patience``
-    steps in a row, the step ends as done. A step that has not made progress yet (a knife still
-    descending) is never stopped, unless its piece started within ``near`` (Chamfer) of the goal: that
-    piece is at its goal already (a plan that rolls a rolled piece once more), so moving away counts.
+    A trusted controller (``watch=False``: scripted experts, heuristic controllers) runs until it says it
+    stops or the skill's step limit. A watched one (``watch=True``: learned policies) is also measured
+    every env step by the Chamfer distance ``d`` between its piece and the step's goal (on at most
+    ``points`` fixed points of each), and:
 
-    ``overrun``: a controller that ended only because it reached its own step cap (a learned policy's
-    ``max_steps``; it says so with ``at_cap``) runs on for at most this many env steps while every one of
-    them brings the piece closer to the goal than it has been (:meth:`run_on`). The caps were chosen on
-    single-skill configs; a cut that must carry its piece further than any demonstration did is still
-    closing on its goal when its cap ends it (docs/policies.md). 0 (the default) keeps the caps.
+    - is not started when its piece already lies within ``at_goal`` of the goal and the step makes as many
+      pieces as it takes (a plan that rolls a rolled piece once more; a cut is never skipped: to Chamfer a
+      dough and its two halves a few millimetres apart are close);
+    - is stopped (:attr:`~pasta.core.Stop.REGRESSED`) once it has made real progress (its best distance
+      below ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for
+      ``patience`` env steps in a row: pushing cannot pull a piece back, so a push that overshoots only
+      gets worse. A piece that started within ``near`` of its goal counts as having made progress from
+      the first step, so moving away from the goal ends the step at once;
+    - when it says it is at its own step cap (:attr:`~pasta.core.Stop.CAP`), runs on for at most
+      ``overrun`` more env steps while every one of them brings the piece closer than it has been: the
+      caps were chosen on single-skill configs, and a cut that must carry its piece further than any
+      demonstration did is still closing on its goal when its cap ends it (docs/policies.md).
 
-    Use: ``start(piece (K, 3), goal (G, 3))`` before the first action, then ``update(piece) -> stop``
-    after every env step (``run_on(piece) -> go on`` instead, once the controller is at its cap). One
-    instance serves one step at a time (``start`` resets it). :meth:`at_goal` says whether a piece starts
-    within ``near`` of its goal.
+    A step is retried (:meth:`should_retry`) when it ended at the skill's step limit, or when fewer pieces
+    are observed than a successful step leaves (a cut whose bottom layer still joins the halves).
     """
 
     rise: float = 0.5
+    near: float = 0.001
+    overrun: int = 40
+    at_goal: float = 0.001
     patience: int = 3
     progress: float = 0.5
     points: int = 256
-    near: float = 0.0
-    overrun: int = 0
 
     def __post_init__(self) -> None:
         ok = (self.rise > 0 and self.patience >= 1 and 0 < self.progress <= 1 and self.points >= 1
-              and self.near >= 0 and self.overrun >= 0)
+              and self.near >= 0 and self.at_goal >= 0 and self.overrun >= 0)
         if not ok:
-            raise InputError("RegressionStop needs rise > 0, patience >= 1, progress in (0, 1], points >= 1, "
-                             f"near >= 0, overrun >= 0; got {self}")
+            raise InputError("GoalMonitor needs rise > 0, patience >= 1, progress in (0, 1], points >= 1, "
+                             f"near >= 0, at_goal >= 0, overrun >= 0; got {self}")
         self._goal: np.ndarray | None = None
+        self._watch = False
+        self._limit = 0
 
     def _subset(self, cloud: np.ndarray) -> np.ndarray:
         cloud = np.asarray(cloud, np.float32)
@@ -118,37 +126,63 @@ class RegressionStop:
             return cloud
         return cloud[np.linspace(0, len(cloud) - 1, self.points).astype(np.int64)]  # same particles every step
 
-    def _distance(self, piece: np.ndarray) -> float:
-        return float(chamfer(self._subset(piece), self._goal))
+    def distance(self, piece: np.ndarray, goal: np.ndarray) -> float:
+        """The Chamfer distance the monitor measures, between ``piece (P, 3)`` and ``goal (G, 3)``."""
+        return float(chamfer(self._subset(piece), self._subset(goal)))
 
-    def start(self, piece: np.ndarray, goal: np.ndarray) -> None:
-        self._goal = self._subset(goal)
-        self.initial = self.best = self._distance(piece)
-        self.above = 0
-        self.closer = False  # the last update set a new best distance
+    def should_run(self, piece: np.ndarray, goal: np.ndarray | None, *, keeps_count: bool,
+                   watch: bool) -> Stop | None:
+        if watch and keeps_count and goal is not None and len(piece) and self.at_goal > 0:
+            if self.distance(piece, goal) < self.at_goal:
+                return Stop.AT_GOAL
+        return None
+
+    def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool) -> None:
+        self._limit = int(limit)
+        self._watch = bool(watch) and goal is not None
+        self._goal = self._subset(goal) if self._watch else None
+        self.initial = self.best = self._measure(piece) if self._watch else 0.0
+        self.above = 0  # env steps in a row above the regression band
         self.overran = 0  # env steps run past the controller's cap
 
-    def at_goal(self, piece: np.ndarray, goal: np.ndarray) -> bool:
-        """Whether ``piece (K, 3)`` lies within ``near`` (Chamfer, the measure of :meth:`update`) of ``goal (G, 3)``."""
-        return self.near > 0 and float(chamfer(self._subset(piece), self._subset(goal))) < self.near
+    def _measure(self, piece: np.ndarray) -> float:
+        return float(chamfer(self._subset(piece), self._goal))
 
-    def update(self, piece: np.ndarray) -> bool:
-        if self._goal is None:
-            raise InputError("RegressionStop.update before start")
-        d = self._distance(piece)
-        self.closer = d < self.best
+    def _regressed(self, piece: np.ndarray) -> tuple[bool, bool]:
+        """Measure ``piece``: ``(regressed, closer than ever)``."""
+        d = self._measure(piece)
+        closer = d < self.best
         self.best = min(self.best, d)
         progressed = self.best < self.progress * self.initial or self.initial < self.near
         self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
-        return self.above >= self.patience
+        return self.above >= self.patience, closer
 
-    def run_on(self, piece: np.ndarray) -> bool:
-        """After an env step the controller took at its cap: whether the step may go on past the cap
-        (``overrun`` not used up, and that step brought ``piece`` closer than ever)."""
-        if self.overran >= self.overrun:
-            return False
-        self.overran += 1
-        return not self.update(piece) and self.closer
+    def should_stop(self, piece: np.ndarray, said: Stop | None, steps: int) -> Stop | None:
+        if not self._watch:
+            if said is not None:
+                return said
+            return Stop.LIMIT if steps >= self._limit else None
+        if said is Stop.CAP:
+            # past its cap, a controller runs on while every env step brings its piece closer than ever
+            if self.overran >= self.overrun:
+                return Stop.CAP
+            self.overran += 1
+            regressed, closer = self._regressed(piece)
+            if regressed:
+                return Stop.REGRESSED
+            if not closer:
+                return Stop.CAP
+            return Stop.CAP if steps >= self._limit else None  # the skill's limit still bounds it
+        if said is not None:
+            return said
+        if self._regressed(piece)[0]:
+            return Stop.REGRESSED
+        if steps >= self._limit:
+            return Stop.CAP if self.overran else Stop.LIMIT  # an overrun cut short by the limit was at its cap
+        return None
+
+    def should_retry(self, pieces: int, expected: int, ended: Stop) -> bool:
+        return ended is Stop.LIMIT or pieces < expected
 
 
 def piece_indices(piece: Any, num_points: int) -> np.ndarray:
@@ -185,12 +219,12 @@ def run_skill(
     piece: Any,
     goal_points: np.ndarray | None,
     *,
+    monitor: StepMonitor | None = None,
     max_steps: int | None = None,
     idle_steps: int = 10,
     approach: ToolPose | None = None,
     park: bool = True,
     record: bool = False,
-    stop: RegressionStop | None = None,
 ) -> SkillRun:
     """Run one skill step in ``sim`` and return what happened.
 
@@ -200,26 +234,26 @@ def run_skill(
         controller: expert, heuristic controller or learned policy of that skill.
         piece: the attended piece, as a boolean mask ``(P,)`` or indices into the observed cloud.
         goal_points: ``(G, 3)`` sub-goal of the step (all produced pieces), or ``None`` (experts).
-        max_steps: controller step limit (default: the skill's ``max_steps`` or 50).
+        monitor: decides when the step ends (:class:`pasta.core.StepMonitor`; default: a
+            :class:`GoalMonitor` with its defaults). Whether the step should start at all is asked before
+            (``monitor.should_run``), by whoever decides to run it.
+        max_steps: the step limit in controller env steps (default: the skill's ``max_steps`` or 50).
         idle_steps: zero-action env steps after the controller stops (the dough settles).
         approach: start pose of the tool (default: the controller's ``approach_pose(piece, goal, scene=...)``
             when it has one and it returns a pose, e.g. a learned policy's reset pose, else
             ``skill.approach_pose(piece, goal, scene=...)``).
         park: teleport the tool to ``skill.park_pose()`` at the end.
         record: keep the observations and actions (:class:`Trajectory`).
-        stop: end the step early once the piece moves away from ``goal_points`` again
-            (:class:`RegressionStop`; needs a goal).
 
-    The loop: the controller sees the observation and returns ``(action, done)``; a done with an
-    all-zero action ends the step without stepping, a done with a non-zero action is applied and then
-    ends the step (the last action of a demonstration).
+    The loop: the controller sees the observation and returns ``(action, stop)``; a stop with an all-zero
+    action ends the step without stepping; otherwise the action is applied and the monitor decides
+    whether the step ends (the controller's stop, the step limit, or its own watch).
     """
     t0 = time.perf_counter()
     tool = skill.tool
     obs = sim.observe()
     idx = piece_indices(piece, len(obs.dough))
-    if max_steps is None:
-        max_steps = int(getattr(skill, "max_steps", 50))
+    limit = int(getattr(skill, "max_steps", 50)) if max_steps is None else int(max_steps)
     if approach is None and callable(getattr(controller, "approach_pose", None)):
         # a controller with its own (learned) start pose; None falls back to the skill's
         approach = controller.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)
@@ -233,15 +267,16 @@ def run_skill(
     traj = Trajectory() if record else None
     view = skill_observation(obs, tool, idx, goal_points)
     controller.reset(view)
-    steps, done, stopped, capped = 0, False, False, False
-    if stop is not None and goal_points is not None:
-        stop.start(view.piece, view.goal)
-    else:
-        stop = None
-    while steps < max_steps:
-        action, done = controller.act(view)
+    monitor = monitor if monitor is not None else GoalMonitor()
+    monitor.begin(view.piece, view.goal, limit=limit, watch=bool(getattr(controller, "watch", False)))
+    steps = 0
+    ended: Stop | None = Stop.LIMIT if limit <= 0 else None
+    while ended is None:
+        action, said = controller.act(view)
+        said = stop_reason(said)
         action = np.clip(np.asarray(action, np.float32).reshape(-1), -1.0, 1.0)
-        if done and not np.any(action):
+        if said is not None and not np.any(action):
+            ended = said
             break
         if traj is not None:
             traj.add_obs(obs, tool)
@@ -250,15 +285,7 @@ def run_skill(
         steps += 1
         obs = sim.observe()
         view = skill_observation(obs, tool, idx, goal_points)
-        if done:
-            if stop is None or not getattr(controller, "at_cap", False) or not stop.run_on(view.piece):
-                break
-            done, capped = False, True  # past the controller's cap while the piece still closes on its goal
-            continue
-        if stop is not None and stop.update(view.piece):
-            done = stopped = True
-            break
-    done = done or capped  # a controller run past its own cap had reported done there
+        ended = monitor.should_stop(view.piece, said, steps)
     if traj is not None:
         traj.add_obs(obs, tool)
     for _ in range(max(0, idle_steps)):
@@ -266,4 +293,4 @@ def run_skill(
     if park:
         pose = skill.park_pose()
         sim.set_tool_pose(tool, pose.position, yaw=pose.yaw)
-    return SkillRun(skill.name, steps, bool(done), approach, time.perf_counter() - t0, traj, stopped)
+    return SkillRun(skill.name, steps, ended, approach, time.perf_counter() - t0, traj)

@@ -1,0 +1,128 @@
+"""Writes a plan's execution into a :class:`pasta.io.RunLogger` (the topics of docs/logging.md)."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import asdict
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from pasta.core.plan import Plan, PlanStep
+from pasta.core.skill import Skill
+
+if TYPE_CHECKING:
+    from pasta.execute.executor import ExecutionResult, StepInfo
+
+__all__ = ["ExecutionLog"]
+
+
+def _tool_rgba(color: str) -> tuple[float, float, float, float]:
+    """RGBA of a ToolSpec colour name (``"tab:red"``); the viewer's default grey for ``""``."""
+    from pasta.io.schemas import DEFAULT_TOOL_COLOR
+
+    if not color:
+        return tuple(DEFAULT_TOOL_COLOR)
+    from matplotlib.colors import to_rgba
+
+    return tuple(float(v) for v in to_rgba(color))
+
+
+class ExecutionLog:
+    """Writes an execution into a RunLogger (topics of docs/logging.md): the dough and the tools after every
+    env step, every action and teleport (so ``pasta replay --verify`` can re-simulate the run), the plan,
+    and one line per step start, retry, skip and end."""
+
+    def __init__(self, logger: Any, sim: Any) -> None:
+        self.log, self.sim = logger, sim
+        self.env_dt = sim.cfg.dt * sim.cfg.substeps
+        # the simulator's tool set is fixed: convert each ToolSpec colour once, not on every logged step
+        self.tool_rgba = {name: _tool_rgba(sim.tool_spec(name).color) for name in sim.tool_names}
+
+    def t(self, step: int) -> int:
+        from pasta.io import step_time_ns
+
+        return step_time_ns(step, self.env_dt)
+
+    def start(self, obs: Any, goal: np.ndarray, plan: Plan) -> None:
+        buf = io.BytesIO()
+        self.sim.get_state().save(buf)
+        self.log.attach("initial_state.npz", buf.getvalue(), "application/x-npz", t_ns=self.t(self.sim.step_count))
+        self.log.attach_json("sim_config.json", asdict(self.sim.cfg))
+        t = self.t(self.sim.step_count)
+        self.log.point_cloud("/goal", t, goal)
+        self.log.point_cloud("/dough", t, obs.dough)
+        self.tools(t)
+        self.plan(plan)
+        self.log.flush()  # a killed run keeps its plan and initial state (fixed flush points: same bytes every run)
+
+    def plan(self, plan: Plan) -> None:
+        d = plan.to_dict(timings=True)
+        d["cost"] = plan.final_cost
+        for s in d["steps"]:
+            s["outputs"] = len(s["subgoal"])
+        self.log.plan(self.t(self.sim.step_count), d)
+
+    def tools(self, t: int, override: dict[str, np.ndarray] | None = None) -> None:
+        """Log every tool at its current pose (``override``: tool -> (7,) pose to show instead)."""
+        from pasta.io import ToolPrimitive
+        from pasta.sim.tools import tool_shapes
+
+        prims = []
+        for name in self.sim.tool_names:  # every tool of the simulator, drawn from its ToolSpec's primitives
+            pose = (override or {}).get(name)
+            pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
+            for ent, kind, size, centre, quat in tool_shapes(self.sim.tool_spec(name), pose, self.sim.tool_aperture(name)):
+                prims.append(ToolPrimitive(ent, kind, size, centre, quat, self.tool_rgba[name]))
+        self.log.tools("/tools", t, prims)
+
+    def step_start(self, h: int, obs: Any, labels: np.ndarray, subgoal: list[np.ndarray], step: PlanStep,
+                   attended: tuple[int, ...]) -> None:
+        t = self.t(self.sim.step_count)
+        self.log.entities("/entities", t, [obs.dough[labels == e] for e in range(int(labels.max()) + 1)])
+        self.log.entities("/plan/subgoals", t, subgoal)
+        self.log.message(t, "info", f"step {h}: {step.skill} on planned entities {list(step.inputs)} "
+                                    f"-> observed entities {list(attended)}")
+
+    def retry(self, h: int, skill: str, attempt: int, why: str) -> None:
+        self.log.message(self.t(self.sim.step_count), "warning", f"step {h}: {skill} visibly failed ({why}); attempt {attempt}")
+
+    def note(self, level: str, text: str) -> None:
+        """A line on the run's log channel at the current simulation time."""
+        self.log.message(self.t(self.sim.step_count), level, text)
+
+    def skill_run(self, start: int, skill: Skill, res: Any, idle: int) -> None:
+        tool, traj = skill.tool, res.trajectory
+        s = start
+        self.log.set_tool_pose(self.t(s), s, tool, list(res.approach.position), yaw=float(res.approach.yaw))
+        for i, action in enumerate(traj.action):
+            self.log.action(self.t(s + 1), s, tool, np.asarray(action, np.float32))
+            s += 1
+            self.log.point_cloud("/dough", self.t(s), traj.dough[i + 1])
+            self.tools(self.t(s), {tool: traj.tool_pose[i + 1]})
+        from pasta.io import ACTIONS
+        from pasta.io.schemas import ACTION_SCHEMA
+
+        for _ in range(idle):  # run_skill's idle steps: sim.step() with no tool action
+            self.log.json(ACTIONS, self.t(s + 1), {"step": s, "actions": {}}, schema=ACTION_SCHEMA)
+            s += 1
+        pose = skill.park_pose()
+        self.log.set_tool_pose(self.t(s), s, tool, list(pose.position), yaw=float(pose.yaw))
+        t = self.t(self.sim.step_count)
+        self.log.point_cloud("/dough", t, self.sim.observe().dough)
+        self.tools(t)
+
+    def step_end(self, info: StepInfo) -> None:
+        self.log.step_result(self.t(self.sim.step_count), {**info.to_dict(), "score": info.normalized_improvement})
+        self.log.flush()  # a killed run loses at most the step in progress
+
+    def finish(self, result: ExecutionResult) -> None:
+        t = self.t(self.sim.step_count)
+        if result.diverged is None:
+            buf = io.BytesIO()
+            self.sim.get_state().save(buf)
+            self.log.attach("final_state.npz", buf.getvalue(), "application/x-npz", t_ns=t)
+        self.log.metrics(t, {"normalized_improvement": result.normalized_improvement, "emd_initial": result.emd_initial,
+                             "emd_final": result.emd_final, "steps": len(result.steps),
+                             "env_steps": int(sum(s.env_steps for s in result.steps)),
+                             "diverged": result.diverged is not None})
