@@ -65,18 +65,6 @@ FORBIDDEN: dict[tuple[str, str], str] = {
 #: ``importer -> imported`` modules. The test prints them; each must still occur (delete it when it does
 #: not), so the set shrinks to empty as that work lands.
 PENDING: set[str] = {
-    # the trainers move from pasta.policy (runtime only) to pasta.train, the demo reader to pasta.demos:
-    "pasta.policy.dataset -> pasta.train.data",  # Demo
-    "pasta.policy.train -> pasta.train.data",  # load_demos
-    "pasta.policy.train -> pasta.train.loop",  # fit
-    "pasta.policy.reset -> pasta.train.data",  # the reset-pose trainer (reset_command)
-    "pasta.policy.reset -> pasta.train.loop",
-    "pasta.policy.reset -> pasta.nn.config",  # its decoded-goal encoder, built by the trainer
-    "pasta.policy.reset -> pasta.nn.encoders",
-    "pasta.policy.select -> pasta.train.loop",  # stopping-rule selection is a trainer
-    "pasta.policy.evaluate -> pasta.demos",  # single-skill policy evaluation is a trainer
-    "pasta.policy.evaluate -> pasta.demos.generate",
-    "pasta.policy.evaluate -> pasta.demos.scene",
     # the one run config (pasta.config.run) holds the simulator's section, SimConfig, a peer's dataclass at
     # layer 2: the owner of pasta.config either moves SimConfig down (core) or declares config above sim
     "pasta.config.run -> pasta.sim.config",

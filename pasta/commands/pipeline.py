@@ -36,9 +36,8 @@ EPILOG = """arguments (key=value):
   <stage>.<key>=value    a setting of every unit of a stage, e.g. vae.epochs=5, policy.batch_size=16
   <stage>.<skill>.<key>=value
                          a setting of one skill's unit, e.g. feasibility.push.epochs=30
-  The keys are those of `pasta demos`, `pasta train <stage>` (see docs/learning.md),
-  `python -m pasta.policy.reset` and `python -m pasta.policy.select` (docs/policies.md); a typo is
-  reported with the closest valid key before anything runs.
+  The keys are those of `pasta demos` and `pasta train <stage>` (docs/learning.md; reset and
+  select: docs/policies.md); a typo is reported with the closest valid key before anything runs.
 
 units and defaults (sized for a 2-core CPU; the settings the shipped models were trained with; the
 per-skill ones come from each skill plugin's training_defaults and demo_variants):
@@ -50,12 +49,12 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
                          shift_max=0.25; push and roll stride=4 epochs=20   -> OUT/feasibility/<skill>
   cost                   stride=5 threads=1 (epochs 60)                     -> OUT/cost
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
-                         cut and roll: step_feature=true pose_feature=true; cut: start_at_reset=true;
-                         lift: also goal_feature=true
-  reset/cut              python -m pasta.policy.reset epochs=90 start_step=0 points=1000 threads=1 target=skill
+                         (step_feature and pose_feature on: the defaults); cut: start_at_reset=true;
+                         push and lift: goal_feature=true
+  reset/cut              pasta train reset threads=1 (epochs 90, start_step 0, points 1000) target=skill
                          piece_share=true x_share=true decoded_goals=0.5 decoded_noise=0.5
                                                                 -> OUT/policy/cut/reset.* (+ reset_metrics.json)
-  select/<skill>         python -m pasta.policy.select n=20 seed=2000 write=1 threads=1 (validation
+  select/<skill>         pasta train select n=20 seed=2000 write=true threads=1 (validation
                          configs; the rule goes into OUT/policy/<skill>/model.json, the per-config
                          results into select.json); cut thresholds=0.3,...,0.7
                          max_steps=0,40,45,50,55,60,65,70,80,100; roll thresholds=0.3,...,0.8
@@ -68,7 +67,7 @@ resuming:
   still in model.json) exists and OUT/pipeline.json says it was produced with the same settings
   (trainer config, dataset path and demo counts, for feasibility and cost the VAE weights, for select
   the policy and reset weights): it is skipped. A unit stopped half-way resumes from its last.*
-  checkpoint (select: at the first config it had not scored; reset restarts, a few minutes). A unit
+  checkpoint (reset: reset_last.*; select: at the first config it had not scored). A unit
   with other settings (or no record) starts afresh; a retrained VAE reruns feasibility and cost, a
   retrained policy its select unit, more demonstrations rerun the units that read them. progress,
   threads, resume and workers never cause a rerun. Each unit prints a line when it starts and one
@@ -94,7 +93,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pasta.train.pipeline import run_pipeline
+    from pasta.pipeline import run_pipeline
 
     try:
         results = run_pipeline(args.overrides)

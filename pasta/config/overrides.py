@@ -1,5 +1,5 @@
 """``key=value`` command-line arguments turned into typed dataclasses, for commands whose settings are
-not part of the run config (``pasta demos``, ``pasta oracle``, ``pasta train``, ``pasta run``).
+not part of the run config (``pasta demos``, ``pasta train``, ``pasta pipeline``, a command's own keys).
 
 Values are converted by omegaconf from the dataclass field types, so errors read as they do for
 :func:`pasta.config.load_config`; an unknown key names the closest valid one.
@@ -7,7 +7,6 @@ Values are converted by omegaconf from the dataclass field types, so errors read
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from typing import Any
@@ -27,21 +26,6 @@ def split_overrides(items: Sequence[str]) -> dict[str, str]:
             raise ConfigError(f"argument {item!r} must look like key=value")
         out[key.strip()] = value.strip()
     return out
-
-
-def script_args(argv: Sequence[str] | None, usage: str | None, command: str) -> dict[str, str]:
-    """The ``key=value`` arguments of a ``python -m`` script (``sys.argv[1:]`` when ``argv`` is ``None``).
-    ``-h`` / ``--help`` prints ``usage`` (the module docstring) and exits 0; anything that is not
-    ``key=value`` exits 2 with a message naming it, instead of a traceback."""
-    items = list(sys.argv[1:] if argv is None else argv)
-    if any(a in ("-h", "--help") for a in items):
-        print(usage or command)
-        raise SystemExit(0)
-    try:
-        return split_overrides(items)
-    except ConfigError as err:
-        print(f"{command}: {err} (see --help)", file=sys.stderr)
-        raise SystemExit(2) from err
 
 
 def build(cls: type, values: Mapping[str, Any], *, command: str = "") -> Any:

@@ -42,15 +42,20 @@ class Encoder(ABC):
         """Decode latents ``(K, D)`` to point clouds ``(K, P, 3)`` with ``P = num_points``."""
 
     def decode_clouds(self, latents: Any, num_points: int) -> list[np.ndarray]:
-        """Decode ``(K, D)`` latents (any array-like) into ``K`` float32 clouds ``(num_points, 3)``, without
-        gradients: what the executor hands a controller as a sub-goal and what a summary draws."""
+        """Decode ``(K, D)`` latents (a tensor, also one that tracks gradients, or any array-like) into ``K``
+        float32 clouds ``(num_points, 3)``, without gradients: what the executor hands a controller as a
+        sub-goal, what a summary draws, what the reset pose's decoded-goal augmentation trains on."""
         import numpy as np
         import torch
 
         if len(latents) == 0:
             return []
+        if isinstance(latents, torch.Tensor):
+            x = latents.detach().to("cpu", torch.float32)
+        else:
+            x = torch.as_tensor(np.asarray(latents, np.float32))
         with torch.no_grad():
-            out = self.decode(torch.as_tensor(np.asarray(latents, np.float32)), num_points)
+            out = self.decode(x, num_points)
         out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
         return [np.asarray(c, np.float32) for c in out]
 

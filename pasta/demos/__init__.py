@@ -1,4 +1,5 @@
-"""Demonstrations: generation with the scripted experts (``pasta demos``); :mod:`pasta.train.data` reads them.
+"""Demonstrations: generation with the scripted experts (``pasta demos``, :mod:`pasta.demos.generate`) and the
+reader every trainer uses (:mod:`pasta.demos.data`: ``load_demos``, ``split_by_demo``).
 
 The skills that can make them, and their scenes, come from the skill plugins (:mod:`pasta.demos.scene`).
 """

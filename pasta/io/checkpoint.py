@@ -7,6 +7,10 @@ A checkpoint named ``NAME`` in directory ``DIR`` is two files:
   needed to rebuild the module (sizes, normalisation, the skill it belongs to), ``state`` free JSON
   (epoch, best validation loss, ...).
 
+Format version 2 writes every config key its loader needs: the loaders read no defaults for keys a file
+lacks. A file of another version (1: written before that rule) fails with one error naming its version
+and what to do; pasta's shipped weights are version 2.
+
 :func:`load_checkpoint` checks the format version, the module name and any expected config values and
 raises :class:`IncompatibleCheckpointError` listing every mismatch.
 """
@@ -24,7 +28,8 @@ from pasta.core.errors import ConfigError, MissingComponentError
 if TYPE_CHECKING:
     import torch
 
-FORMAT_VERSION = 1
+#: version 2: every config key a loader needs is written (version 1 files relied on the loaders' defaults)
+FORMAT_VERSION = 2
 
 __all__ = [
     "FORMAT_VERSION",
@@ -107,7 +112,8 @@ def load_checkpoint(
     Args:
         module: expected module name.
         expect: config keys that must have these values (e.g. ``{"z_dim": 2, "skill": "cut"}``).
-        hint: how to produce the checkpoint (a training command), added to the missing-file error.
+        hint: how to produce the checkpoint (a training command), added to the missing-file and
+            format-version errors.
 
     Raises:
         MissingComponentError: a file is missing.
@@ -124,9 +130,13 @@ def load_checkpoint(
         doc = json.loads(header.read_text())
     except json.JSONDecodeError as exc:
         raise IncompatibleCheckpointError(f"{header} is not valid JSON: {exc}") from None
+    version = doc.get("format_version")
+    if version != FORMAT_VERSION:
+        fix = hint or "retrain it with this pasta (to resume a run, start over with resume=false)"
+        raise IncompatibleCheckpointError(
+            f"checkpoint {weights} has format_version {version!r}; this pasta reads version {FORMAT_VERSION} (every "
+            f"setting its loader needs written out): {fix}")
     problems = []
-    if doc.get("format_version") != FORMAT_VERSION:
-        problems.append(f"format_version is {doc.get('format_version')!r}, this pasta reads {FORMAT_VERSION}")
     if doc.get("module") != module:
         problems.append(f"module is {doc.get('module')!r}, expected {module!r}")
     config = doc.get("config", {})

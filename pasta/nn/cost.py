@@ -79,9 +79,9 @@ class SetCostModel(CostModel):
 
 
 def load_pair_cost(directory: str, *, device: str = "cpu", latent_dim: int | None = None,
-                   scope: str | None = None) -> PairCost:
-    """Load a trained :class:`PairCost` from ``directory`` (checks module and, if given, ``latent_dim``
-    and ``scope``: ``"scene"`` accepts only Flat 3D networks, trained with ``flat=true``)."""
+                   scope: str = "entity") -> PairCost:
+    """Load a trained :class:`PairCost` from ``directory`` (checks module, ``latent_dim`` if given, and
+    ``scope``: ``"entity"``; ``"scene"`` accepts only Flat 3D networks, trained with ``flat=true``)."""
     from pasta.io.checkpoint import load_checkpoint
 
     if not directory:

@@ -24,12 +24,10 @@ def load_feasibility(
     n_out: int | None = None,
     latent_dim: int | None = None,
     device: str = "cpu",
-    scope: str | None = None,
+    scope: str = "entity",
 ) -> SetFeasibility:
-    """Load a trained :class:`SetFeasibility`, checking the skill name, sizes and scope that are given.
-
-    ``scope="scene"`` accepts only Flat 3D networks (trained with ``flat=true``).
-    """
+    """Load a trained :class:`SetFeasibility`, checking the skill name and sizes that are given and the scope
+    (``"entity"``; ``"scene"`` accepts only Flat 3D networks, trained with ``flat=true``)."""
     from pasta.io.checkpoint import load_checkpoint
 
     given = (("skill", skill), ("n_in", n_in), ("n_out", n_out), ("latent_dim", latent_dim), ("scope", scope))
@@ -38,9 +36,9 @@ def load_feasibility(
     c = ckpt.config
     model = SetFeasibility(c["n_in"], c["n_out"], c["latent_dim"], c["hidden"])
     model.load_state_dict(ckpt.tensors)
-    box = c.get("output_box")  # networks trained before it was recorded have none (pasta.core.Skill.output_box)
+    box = c["output_box"]  # null: the skill's outputs recorded no box (pasta.core.Skill.output_box)
     model.output_box = None if box is None else (tuple(float(v) for v in box[0]), tuple(float(v) for v in box[1]))
-    model.train_settings = dict(c.get("train") or {})  # how it was trained (e.g. its negatives), for run summaries
+    model.train_settings = dict(c["train"])  # how it was trained (e.g. its negatives), for run summaries
     return model.requires_grad_(False).to(device).eval()
 
 

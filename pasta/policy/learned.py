@@ -9,7 +9,7 @@ set. Its ``watch`` is on: the step monitor (:class:`pasta.tasks.step.GoalMonitor
 progress instead of trusting its done head alone.
 
 Checkpoints: ``DIR/model.safetensors`` + ``DIR/model.json`` with module ``"policy"`` and config
-``{"skill", "tool", "network": PolicyConfig}`` (written by :func:`pasta.policy.train.train_policy`
+``{"skill", "tool", "network": PolicyConfig}`` (written by :func:`pasta.train.policy.train_policy`
 through the shared loop of :mod:`pasta.train.loop`).
 """
 
@@ -52,7 +52,7 @@ class LearnedPolicy:
     unless ``reset=False``. Without one the policy starts from the skill's own approach pose, as before.
 
     A checkpoint may carry its stopping rule (selected on validation configs by
-    :mod:`pasta.policy.select`) in ``config.controller``; :meth:`load` uses it unless overridden.
+    :mod:`pasta.train.select`) in ``config.controller``; :meth:`load` uses it unless overridden.
     """
 
     def __init__(self, net: PolicyNet, skill: str, *, done_threshold: float = 0.5, min_steps: int = 1,

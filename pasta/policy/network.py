@@ -11,8 +11,9 @@ concatenated to one cloud of ``P + T + G`` points, each with a one-hot source fe
 shifted so that the dough centroid lies at ``x = z = 0`` (``y``, the height above the floor, is
 kept): actions are relative tool motions, so the policy need not learn every placement.
 
-Optional low-dimensional inputs (off in checkpoints written before they existed, which load unchanged),
-embedded by a small MLP (``aux_widths``) and concatenated to the global point feature before the heads:
+Low-dimensional inputs, embedded by a small MLP (``aux_widths``) and concatenated to the global point
+feature before the heads (``step_feature`` and ``pose_feature`` on by default: every skill's policy uses
+them; ``goal_feature`` for the skills whose goal lies elsewhere, push and lift):
 
 - ``step_feature``: the execution step ``t`` (actions taken so far in this skill execution), as
   ``t / step_scale``. A multi-phase skill is not Markov in one frame: the cut's knife passes the same
@@ -51,9 +52,9 @@ class PolicyConfig:
         center_xz: shift every cloud so that the dough centroid is at ``x = z = 0``.
         encoder: the PointNet++ sizes.
         head_widths: hidden widths of the action and done heads.
-        step_feature: feed the execution step ``t / step_scale`` to the heads.
+        step_feature: feed the execution step ``t / step_scale`` to the heads (on: every shipped policy).
         step_scale: divisor of the step index.
-        pose_feature: feed the tool pose ``(7,)`` to the heads.
+        pose_feature: feed the tool pose ``(7,)`` to the heads (on: every shipped policy).
         goal_feature: feed the goal centroid's offset from the dough centroid ``(3,)`` to the heads.
         aux_widths: widths of the MLP that embeds the step / pose / goal inputs.
     """
@@ -65,9 +66,9 @@ class PolicyConfig:
     center_xz: bool = True
     encoder: PointNet2Config = field(default_factory=PointNet2Config)
     head_widths: tuple[int, ...] = (256, 128)
-    step_feature: bool = False
+    step_feature: bool = True
     step_scale: float = 50.0
-    pose_feature: bool = False
+    pose_feature: bool = True
     goal_feature: bool = False
     aux_widths: tuple[int, ...] = (64, 64)
 
@@ -87,25 +88,33 @@ class PolicyConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PolicyConfig:
-        d = dict(d)
-        enc = dict(d.pop("encoder", {}))
+        """The config :meth:`to_dict` wrote; every key must be there (no defaults for missing ones).
+
+        Raises:
+            ConfigError: a key is missing or unknown."""
+        _check_keys("policy network", d, cls.__dataclass_fields__)
+        enc = dict(d["encoder"])
+        _check_keys("policy network encoder", enc, ("in_features", "pos_scale", "global_widths", "levels"))
         levels = [SAConfig(int(lv["centers"]), float(lv["radius"]), int(lv["k"]), tuple(int(w) for w in lv["widths"]))
-                  for lv in enc.pop("levels", [])] or None
-        encoder = PointNet2Config(
-            in_features=int(enc.get("in_features", 3)),
-            pos_scale=float(enc.get("pos_scale", 10.0)),
-            global_widths=tuple(int(w) for w in enc.get("global_widths", (128, 256, 512))),
-            **({"levels": levels} if levels else {}),
-        )
-        head = tuple(int(w) for w in d.pop("head_widths", (256, 128)))
-        for key in ("step_feature", "pose_feature", "goal_feature"):
-            if key in d:
-                d[key] = bool(d[key])
-        if "step_scale" in d:
-            d["step_scale"] = float(d["step_scale"])
-        if "aux_widths" in d:
-            d["aux_widths"] = tuple(int(w) for w in d["aux_widths"])
-        return cls(encoder=encoder, head_widths=head, **d)
+                  for lv in enc["levels"]]
+        encoder = PointNet2Config(in_features=int(enc["in_features"]), pos_scale=float(enc["pos_scale"]),
+                                  global_widths=tuple(int(w) for w in enc["global_widths"]), levels=levels)
+        return cls(action_dim=int(d["action_dim"]), dough_points=int(d["dough_points"]), tool_points=int(d["tool_points"]),
+                   goal_points=int(d["goal_points"]), center_xz=bool(d["center_xz"]), encoder=encoder,
+                   head_widths=tuple(int(w) for w in d["head_widths"]), step_feature=bool(d["step_feature"]),
+                   step_scale=float(d["step_scale"]), pose_feature=bool(d["pose_feature"]),
+                   goal_feature=bool(d["goal_feature"]), aux_widths=tuple(int(w) for w in d["aux_widths"]))
+
+
+def _check_keys(what: str, d: dict[str, Any], keys: Any) -> None:
+    """Raise :class:`~pasta.core.errors.ConfigError` naming the keys of ``keys`` that ``d`` lacks and those it
+    has beyond them (a checkpoint config of format version 2 writes every key)."""
+    from pasta.core.errors import ConfigError
+
+    missing, unknown = sorted(set(keys) - set(d)), sorted(set(d) - set(keys))
+    if missing or unknown:
+        parts = ([f"lacks {', '.join(missing)}"] if missing else []) + ([f"has unknown {', '.join(unknown)}"] if unknown else [])
+        raise ConfigError(f"{what} config {' and '.join(parts)}")
 
 
 def _head(sizes: list[int]) -> nn.Sequential:

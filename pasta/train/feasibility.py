@@ -104,8 +104,9 @@ _ADDED_LATER = {"flat": False, "shift_axes": "xz", "shift_entities": "all", "tra
 
 
 def scope_config(cfg: Any) -> dict[str, str]:
-    """``{"scope": "scene"}`` for a Flat 3D run (checked by :func:`pasta.nn.flat.load_flat`), else ``{}``."""
-    return {"scope": "scene"} if getattr(cfg, "flat", False) else {}
+    """``{"scope": "scene"}`` for a Flat 3D run, else ``{"scope": "entity"}`` (checked by the loaders, so an
+    entity planner never loads a Flat 3D network, nor the reverse)."""
+    return {"scope": "scene" if getattr(cfg, "flat", False) else "entity"}
 
 
 def positive_tuples(

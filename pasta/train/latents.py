@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from pasta.train.data import Demo, demo_entities
+from pasta.demos.data import Demo, demo_entities
 
 
 @dataclass
@@ -48,7 +48,7 @@ def encode_scenes(demos: list[Demo], encoder: Any, *, num_points: int = 1000, st
     """The Flat 3D version of :func:`encode_demos`: every state is the whole dough as ONE entity.
 
     The states of a demonstration are its first step and the dough after the skill
-    (:attr:`~pasta.train.data.Demo.after`) with ``stride=None``; with ``stride`` every ``stride``-th
+    (:attr:`~pasta.demos.data.Demo.after`) with ``stride=None``; with ``stride`` every ``stride``-th
     step, then the dough after the skill. Each is resampled to ``num_points`` points (as
     :func:`pasta.execute.episode.perceive` does for a scene encoder) and encoded as ``(1, D)``.
     """

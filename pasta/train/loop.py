@@ -4,13 +4,17 @@ A module plugs in as a :class:`TrainTask`: its network, its batches, its loss an
 loop seeds every epoch from ``(seed, epoch)`` (so a resumed run repeats exactly what an uninterrupted
 run would do), shows a rich progress bar on stderr, keeps the best weights by validation loss in
 ``OUT/model.*`` and the last state (weights, optimiser, history) in ``OUT/last.*``, and resumes from
-``OUT/last.*`` when it exists.
+``OUT/last.*`` when it exists. A module that shares its directory with another (a policy's reset pose
+beside its ``model.*``) names its own checkpoint: ``fit(..., name="reset")`` writes ``OUT/reset.*`` and
+``OUT/reset_last.*``.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+
+import numpy as np
 from contextlib import contextmanager
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
@@ -85,10 +89,23 @@ class FitResult:
     history: list[dict[str, float]] = field(default_factory=list)
 
 
-def fit(task: TrainTask, cfg: LoopConfig, out_dir: str | Path) -> FitResult:
-    """Train ``task.model`` for ``cfg.epochs`` epochs; leave it holding the best validation weights."""
+def fit(task: TrainTask, cfg: LoopConfig, out_dir: str | Path, *, name: str = "model") -> FitResult:
+    """Train ``task.model`` for ``cfg.epochs`` epochs; leave it holding the best validation weights.
+
+    ``name``: the checkpoint of the best weights, ``OUT/<name>.*``; the state to resume from is
+    ``OUT/last.*`` (``OUT/<name>_last.*`` for another name than ``model``, :func:`last_name`)."""
     with torch_threads(cfg.threads):
-        return _fit(task, cfg, Path(out_dir))
+        return _fit(task, cfg, Path(out_dir), name)
+
+
+def last_name(name: str = "model") -> str:
+    """The resume checkpoint beside checkpoint ``name``: ``last`` for ``model``, else ``<name>_last``."""
+    return "last" if name == "model" else f"{name}_last"
+
+
+def numpy_rng(generator: torch.Generator) -> np.random.Generator:
+    """A numpy generator drawn from ``generator`` (a task's batches in numpy, seeded by the loop's epoch)."""
+    return np.random.default_rng(int(torch.randint(0, 2**62, (1,), generator=generator)))
 
 
 @contextmanager
@@ -103,9 +120,9 @@ def torch_threads(n: int):
         torch.set_num_threads(before)
 
 
-def _fit(task: TrainTask, cfg: LoopConfig, out: Path) -> FitResult:
+def _fit(task: TrainTask, cfg: LoopConfig, out: Path, name: str) -> FitResult:
     optimiser = torch.optim.Adam(task.model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
-    start, best, history = _resume(task, optimiser, cfg, out) if cfg.resume else (0, (math.inf, -1), [])
+    start, best, history = _resume(task, optimiser, cfg, out, name) if cfg.resume else (0, (math.inf, -1), [])
     with _progress(cfg.progress) as bar:
         job = bar.add_task(task.module, total=cfg.epochs, completed=start)
         for epoch in range(start, cfg.epochs):
@@ -126,16 +143,16 @@ def _fit(task: TrainTask, cfg: LoopConfig, out: Path) -> FitResult:
             if figures["val_loss"] < best[0]:
                 best = (figures["val_loss"], epoch)
                 save_checkpoint(out, module=task.module, tensors=task.model.state_dict(), config=task.config(),
-                                state={"epoch": epoch, "val_loss": figures["val_loss"], "loop": asdict(cfg)})
-            _save_last(task, optimiser, cfg, out, epoch, best, history)
+                                state={"epoch": epoch, "val_loss": figures["val_loss"], "loop": asdict(cfg)}, name=name)
+            _save_last(task, optimiser, cfg, out, epoch, best, history, name)
             bar.update(job, advance=1, description=f"{task.module} val {figures['val_loss']:.4g} (best {best[0]:.4g} @{best[1]})")
     if best[1] >= 0:
-        task.model.load_state_dict(load_checkpoint(out, module=task.module).tensors)
+        task.model.load_state_dict(load_checkpoint(out, module=task.module, name=name).tensors)
     return FitResult(best[1], best[0], cfg.epochs - start, history)
 
 
 def _save_last(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfig, out: Path, epoch: int,
-               best: tuple[float, int], history: list[dict[str, float]]) -> None:
+               best: tuple[float, int], history: list[dict[str, float]], name: str) -> None:
     tensors = {f"model.{k}": v for k, v in task.model.state_dict().items()}
     opt = optimiser.state_dict()
     for idx, slots in opt["state"].items():
@@ -143,13 +160,13 @@ def _save_last(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfi
             tensors[f"optim.{idx}.{key}"] = torch.as_tensor(value)
     state = {"epoch": epoch, "best_val_loss": best[0] if math.isfinite(best[0]) else None, "best_epoch": best[1],
              "history": history, "param_groups": opt["param_groups"], "loop": asdict(cfg)}
-    save_checkpoint(out, module=task.module, tensors=tensors, config=task.config(), state=state, name="last")
+    save_checkpoint(out, module=task.module, tensors=tensors, config=task.config(), state=state, name=last_name(name))
 
 
-def _resume(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfig, out: Path):
-    if not checkpoint_exists(out, "last"):
+def _resume(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfig, out: Path, name: str):
+    if not checkpoint_exists(out, last_name(name)):
         return 0, (math.inf, -1), []
-    ckpt = load_checkpoint(out, module=task.module, name="last")
+    ckpt = load_checkpoint(out, module=task.module, name=last_name(name))
     if ckpt.config != task.config():
         diff = sorted(k for k in set(ckpt.config) | set(task.config()) if ckpt.config.get(k) != task.config().get(k))
         raise IncompatibleCheckpointError(

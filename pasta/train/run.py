@@ -20,7 +20,7 @@ from pasta.config.overrides import build_many
 from pasta.core.errors import ConfigError, did_you_mean
 from pasta.nn import COST_DIR, FEASIBILITY_DIR, FLAT_VAE_DIR, VAE_DIR
 from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
-from pasta.train.data import load_demos, split_by_demo
+from pasta.demos.data import load_demos, split_by_demo
 from pasta.train.feasibility import FeasibilityTask, FeasibilityTrainConfig, positive_tuples
 from pasta.train.latents import encode_demos, encode_scenes
 from pasta.train.loop import LoopConfig, fit, torch_threads

@@ -16,7 +16,7 @@ import torch
 
 from pasta.core.errors import InputError
 from pasta.nn.vae import MODULE, PointVAE, cube_template
-from pasta.train.data import Demo, demo_entities
+from pasta.demos.data import Demo, demo_entities
 
 
 @dataclass

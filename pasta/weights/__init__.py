@@ -10,7 +10,7 @@ Layout (the same as a ``pasta train ... out=MODELS`` root)::
 
 Each directory holds ``model.safetensors`` + ``model.json`` (the loader's format, no pickle) and the
 ``metrics.json`` that its trainer wrote (held-out quality figures and the training settings); a policy
-directory may also hold a learned reset pose, ``reset.safetensors`` + ``reset.json`` (``pasta.policy.reset``).
+directory may also hold a learned reset pose, ``reset.safetensors`` + ``reset.json`` (``pasta.policy.reset``, trained by ``pasta.train.reset``).
 :func:`bundle` copies a trained root here; ``pasta weights`` lists what is shipped.
 """
 

@@ -37,15 +37,3 @@ def test_bad_value_and_malformed_item():
         build_many(["flag=maybe"], [Module])
     with pytest.raises(ConfigError, match="must look like key=value"):
         build_many(["epochs"], [Loop])
-
-
-def test_script_args_parse_key_values_and_explain_bad_ones(capsys):
-    from pasta.config.overrides import script_args
-
-    assert script_args(["n=3", "skills=cut,push"], "usage", "python -m x") == {"n": "3", "skills": "cut,push"}
-    with pytest.raises(SystemExit) as bad:
-        script_args(["n=3", "oops"], "usage", "python -m x")
-    assert bad.value.code == 2 and "'oops' must look like key=value" in capsys.readouterr().err
-    with pytest.raises(SystemExit) as asked:
-        script_args(["--help"], "the usage text", "python -m x")
-    assert asked.value.code == 0 and "the usage text" in capsys.readouterr().out

@@ -111,7 +111,7 @@ def merge_plugin(tmp_path, monkeypatch, fresh_plugins):
 
 def test_plugin_skills_with_an_expert_are_the_demo_skills(merge_plugin, tmp_path, capsys):
     from pasta.demos import DemoConfig, demo_skills, validate
-    from pasta.train.pipeline import PipelineConfig, plan
+    from pasta.pipeline import PipelineConfig, plan
 
     # every registered skill but lazy (it has no expert), whichever other plugins are installed
     expected = [name for name in merge_plugin.skills.names() if name != "lazy"]
@@ -135,8 +135,8 @@ def test_two_to_one_and_one_to_one_plugin_skills_demos_and_training(merge_plugin
     ``pasta pipeline`` with the plugin's skills (what `pasta demos` / `pasta train` run one by one)."""
     from pasta.core.decompose import decompose
     from pasta.nn.loading import load_feasibility
-    from pasta.train.data import load_demos
-    from pasta.train.pipeline import run_pipeline
+    from pasta.demos.data import load_demos
+    from pasta.pipeline import run_pipeline
 
     data, out = tmp_path / "demos", tmp_path / "models"
     stage_args = [f"{stage}.{k}={v}" for stage, values in (("vae", TINY_VAE), ("feasibility", TINY_FEASIBILITY),

@@ -58,7 +58,7 @@ def test_generate_and_load_three_demos(tmp_path):
     assert again["generated"] == 1 and again["skipped"] == 2
     assert files[1].read_bytes() == first
 
-    from pasta.train.data import load_demos  # the one reader every trainer uses
+    from pasta.demos.data import load_demos  # the one reader every trainer uses
 
     demos = load_demos(tmp_path, ["push"])
     assert len(demos) == 3 and demos[0].skill == "push"
@@ -68,7 +68,7 @@ def test_generate_and_load_three_demos(tmp_path):
 
 
 def test_reader_errors(tmp_path):
-    from pasta.train.data import load_demos
+    from pasta.demos.data import load_demos
 
     with pytest.raises(InputError, match="not a pasta dataset: no manifest.json; generate demonstrations"):
         load_demos(tmp_path)

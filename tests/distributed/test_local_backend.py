@@ -97,7 +97,7 @@ def test_unreachable_ray_address_fails_fast(capsys, tmp_path):
 def test_local_backend_never_imports_ray():
     import subprocess
 
-    code = ("import sys, pasta.distributed as d, pasta.commands.eval, pasta.demos.generate, pasta.train.pipeline; "
+    code = ("import sys, pasta.distributed as d, pasta.commands.eval, pasta.demos.generate, pasta.pipeline; "
             "cfg, rest = d.split_backend_args(['backend=local', 'num=2']); "
             "out = list(d.map_jobs(len, lambda s, i, a: i * s, [1, 2], [0, 1], backend=cfg.check())); "
             "assert [o.value for o in out] == [0, 2], out; print('ray' in sys.modules)")

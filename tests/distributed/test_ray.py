@@ -107,7 +107,7 @@ def test_eval_rows_same_local_and_ray(ray_local, tmp_path, monkeypatch, capfd):
 
 @pytest.mark.sim
 def test_pipeline_demos_units_on_ray_then_skipped_under_local(ray_local, tmp_path):
-    from pasta.train.pipeline import run_pipeline
+    from pasta.pipeline import run_pipeline
 
     tiny = [f"demos.{k}={v}" for k, v in TINY.items() if k != "skill"]
     args = [f"data={tmp_path / 'demos'}", f"out={tmp_path / 'models'}", "stages=demos", "skills=push",

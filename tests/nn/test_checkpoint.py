@@ -17,7 +17,8 @@ from pasta.nn.loading import load_feasibility
 
 def save_feasibility(directory, skill="cut", n_in=1, n_out=2):
     model = SetFeasibility(n_in, n_out, 5, hidden=8)
-    save_checkpoint(directory, module="feasibility", tensors=model.state_dict(), config={**model.config(), "skill": skill})
+    save_checkpoint(directory, module="feasibility", tensors=model.state_dict(),
+                    config={**model.config(), "skill": skill, "scope": "entity", "output_box": None, "train": {}})
     return model
 
 
@@ -44,13 +45,57 @@ def test_incompatible_checkpoint_lists_every_mismatch(tmp_path):
         load_checkpoint(tmp_path, module="vae")
 
 
-def test_wrong_format_version(tmp_path):
+def test_other_format_versions_fail_with_one_error_naming_the_version_and_the_fix(tmp_path):
     save_feasibility(tmp_path)
     header = json.loads((tmp_path / "model.json").read_text())
-    header["format_version"] = 99
+    for version in (1, 99):
+        header["format_version"] = version
+        (tmp_path / "model.json").write_text(json.dumps(header))
+        with pytest.raises(IncompatibleCheckpointError, match=f"format_version {version}; this pasta reads version 2"):
+            load_checkpoint(tmp_path, module="feasibility")
+    # a loader's own training command is the fix it names
+    with pytest.raises(IncompatibleCheckpointError, match="format_version 1; .*pasta train feasibility .*skill=cut"):
+        header["format_version"] = 1
+        (tmp_path / "model.json").write_text(json.dumps(header))
+        load_feasibility(tmp_path, skill="cut")
+
+
+def test_loaders_read_every_key_and_default_none(tmp_path):
+    """Format version 2 writes every key a loader needs; one missing is an error, not a default."""
+    save_feasibility(tmp_path)
+    header = json.loads((tmp_path / "model.json").read_text())
+    del header["config"]["output_box"]
     (tmp_path / "model.json").write_text(json.dumps(header))
-    with pytest.raises(IncompatibleCheckpointError, match="format_version is 99"):
-        load_checkpoint(tmp_path, module="feasibility")
+    with pytest.raises(KeyError, match="output_box"):
+        load_feasibility(tmp_path, skill="cut")
+
+
+def test_entity_and_flat_networks_name_their_scope(tmp_path):
+    save_feasibility(tmp_path)
+    with pytest.raises(IncompatibleCheckpointError, match="scope is 'entity', expected 'scene'"):
+        load_feasibility(tmp_path, skill="cut", scope="scene")
+
+
+def test_shipped_weights_are_format_2_with_every_key():
+    from dataclasses import fields
+
+    from pasta.policy.network import PolicyConfig
+    from pasta.policy.reset import ResetConfig
+    from pasta.weights import ROOT
+
+    headers = sorted(p for p in ROOT.rglob("*.json") if not p.name.endswith("metrics.json"))
+    assert len(headers) >= 13
+    for path in headers:
+        doc = json.loads(path.read_text())
+        assert doc["format_version"] == FORMAT_VERSION == 2, path
+        config = doc["config"]
+        if doc["module"] == "policy":
+            assert set(config["network"]) == {f.name for f in fields(PolicyConfig)}, path
+        elif doc["module"] == "reset_pose":
+            assert set(config["network"]) == {f.name for f in fields(ResetConfig)}, path
+        elif doc["module"] in ("feasibility", "set_cost"):
+            assert config["scope"] == "entity" and "train" in config, path
+            assert doc["module"] != "feasibility" or "output_box" in config, path
 
 
 def test_missing_checkpoint_names_the_fix(tmp_path):

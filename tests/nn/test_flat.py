@@ -10,9 +10,9 @@ from pasta.core import MissingComponentError
 from pasta.core.skill import Controller, Skill, SkillSpec, ToolPose
 from pasta.io.checkpoint import IncompatibleCheckpointError, load_checkpoint
 from pasta.nn.flat import FlatSkill, flat_skills, load_flat
-from pasta.train.data import load_demo
+from pasta.demos.data import load_demo
 from pasta.train.run import train
-from pasta.train.synthetic import write_synthetic_dataset
+from synthetic_demos import write_synthetic_dataset
 
 TINY = {
     "vae": {"epochs": "1", "width": "16", "fold_hidden": "16", "input_points": "64", "target_points": "64",
@@ -156,6 +156,6 @@ def test_entity_models_are_not_taken_for_flat_ones(flat_root, tmp_path):
         (mixed / sub).symlink_to(root / sub)
     entity = SetFeasibility(1, 1, 5, 8)  # a 1 -> 1 entity network (push) must not pass for a flat one
     save_checkpoint(mixed / "feasibility" / "push", module="feasibility", tensors=entity.state_dict(),
-                    config={**entity.config(), "skill": "push", "train": {}})
+                    config={**entity.config(), "skill": "push", "scope": "entity", "output_box": None, "train": {}})
     with pytest.raises(IncompatibleCheckpointError, match="scope"):
         load_flat(mixed, [get_plugins().skills.create("push")])

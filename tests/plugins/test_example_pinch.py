@@ -57,8 +57,8 @@ def test_demos_training_planning_and_execution(pinch_installed, tmp_path):
     from pasta.core.decompose import decompose
     from pasta.demos.scene import scene_particles
     from pasta.sim import SimConfig, Simulator
+    from pasta.demos.data import load_demos
     from pasta.tasks.step import run_skill
-    from pasta.train.data import load_demos
 
     data, models, plan_dir = tmp_path / "demos", tmp_path / "models", tmp_path / "plan"
     # 2 demonstrations from the skill's own scene and expert

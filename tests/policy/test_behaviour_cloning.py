@@ -6,12 +6,12 @@ import torch
 
 from pasta.core.errors import InputError
 from pasta.core.skill import SkillObservation
-from pasta.policy.dataset import DemoSet
-from pasta.train.data import Demo
+from pasta.train.policy_data import DemoSet
+from pasta.demos.data import Demo
 from pasta.policy.learned import LearnedPolicy
 from pasta.policy.network import PolicyConfig
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.train import PolicyTrainConfig, train_policy
+from pasta.train.policy import PolicyTrainConfig, train_policy
 
 TINY = PolicyConfig(encoder=PointNet2Config(levels=[SAConfig(32, 0.1, 8, (32, 32))], global_widths=(64, 128)),
                     head_widths=(64,))
@@ -52,8 +52,10 @@ def test_noise_is_uniform_and_bounded():
 def test_tiny_behaviour_cloning_overfits_one_demo(demo_dir, tmp_path):
     from pasta.train.loop import LoopConfig
 
+    # the one-frame network (no step / pose inputs): predict takes the clouds alone
     cfg = PolicyTrainConfig(hindsight_ratio=0.0, noise=0.0, val_fraction=0.0, steps_per_epoch=25, val_batches=1,
-                            dough_points=64, tool_points=20, goal_points=64, max_demos=1)
+                            dough_points=64, tool_points=20, goal_points=64, max_demos=1, step_feature=False,
+                            pose_feature=False)
     loop = LoopConfig(epochs=14, batch_size=16, lr=3e-3, seed=0, progress=False)
     policy, result = train_policy("push", demo_dir, tmp_path / "out", cfg=cfg, loop=loop, network=TINY)
     assert result.best_val_loss < 0.03 * result.history[0]["val_loss"]

@@ -61,7 +61,8 @@ def test_pointnet2_shapes_and_order_invariance():
 
 def test_policy_net_shapes_range_and_order_invariance():
     torch.manual_seed(0)
-    cfg = PolicyConfig(action_dim=4, encoder=_tiny_encoder(), head_widths=(32,))
+    # the one-frame network (no step / pose inputs): the clouds alone
+    cfg = PolicyConfig(action_dim=4, encoder=_tiny_encoder(), head_widths=(32,), step_feature=False, pose_feature=False)
     net = PolicyNet(cfg).eval()
     dough, tool, goal = torch.rand(3, 50, 3) * 0.3, torch.rand(3, 20, 3) * 0.3, torch.rand(3, 40, 3) * 0.3
     with torch.no_grad():

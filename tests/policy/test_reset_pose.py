@@ -5,14 +5,21 @@ import numpy as np
 import pytest
 import torch
 
-from pasta.core import ToolPose
+from pasta.core import Encoder, ToolPose
 from pasta.core.skill import SkillObservation
 from pasta.io.checkpoint import save_checkpoint
 from pasta.policy.learned import LearnedPolicy, PolicyController
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, align_offset, load_reset, train_reset
-from pasta.train.data import Demo
+from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, load_reset
+from pasta.train.loop import LoopConfig
+from pasta.train.reset import align_offset, train_reset
+from pasta.demos.data import Demo
+
+def _loop(epochs, batch_size=32, lr=1e-3):
+    """The shared loop's settings for a tiny fit (seed 0, no progress bar)."""
+    return LoopConfig(epochs=epochs, batch_size=batch_size, lr=lr, seed=0, progress=False)
+
 
 TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
 
@@ -47,7 +54,7 @@ def test_regressor_overfits_a_tiny_set(tmp_path):
     rng = np.random.default_rng(0)
     demos = [_cut_demo(i, rng)[0] for i in range(6)]
     cfg = ResetConfig(points=32, widths=[32, 64], head=[64], start_step=2)
-    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0)
+    net, metrics = train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(300, 6, 3e-3), noise=0.0)
     assert metrics["heldout_mae_m"] < 0.004, metrics  # targets spread over +-0.05 m
     save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
     reset = load_reset(tmp_path)
@@ -60,7 +67,7 @@ def test_share_regressor_overfits_a_tiny_set_and_reads_back_metres(tmp_path):
     rng = np.random.default_rng(0)
     demos = [_cut_demo(i, rng, points=200)[0] for i in range(6)]
     cfg = ResetConfig(points=64, widths=[32, 64], head=[64], x_share=True, piece_share=True)
-    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0)
+    net, metrics = train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(300, 6, 3e-3), noise=0.0)
     assert metrics["heldout_mae_m"] < 0.004, metrics  # reported in metres, as for an offset regressor
     save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
     reset = load_reset(tmp_path)
@@ -139,7 +146,7 @@ def test_reset_head_moves_the_start_pose_and_the_step_counter(tmp_path):
 
 
 def test_start_at_reset_drops_the_align_phase():
-    from pasta.policy.train import from_reset_pose
+    from pasta.train.policy import from_reset_pose
 
     demo, _ = _cut_demo(0, np.random.default_rng(3))
     _, k = align_offset(demo)
@@ -156,7 +163,7 @@ def test_reset_offset_averages_its_draws(tmp_path):
     rng = np.random.default_rng(1)
     demos = [_cut_demo(i, rng)[0] for i in range(4)]
     cfg = ResetConfig(points=16, widths=[16, 32], head=[32])
-    net, _ = train_reset(demos, [], cfg, epochs=3, batch_size=4, seed=0)
+    net, _ = train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(3, 4))
     d = demos[0]
     one = load_reset_from(tmp_path / "one", net, cfg, draws=1).offset(d.dough[0], d.after)
     many = load_reset_from(tmp_path / "many", net, cfg, draws=8)
@@ -194,7 +201,7 @@ def test_regressor_on_the_skill_target_places_the_tool_through_the_skill(tmp_pat
     demos = [_cut_demo(i, rng)[0] for i in range(6)]
     skill = _ShiftedEffect()
     cfg = ResetConfig(points=32, widths=[32, 64], head=[64], target="skill")
-    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0, skill=skill)
+    net, metrics = train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(300, 6, 3e-3), noise=0.0, skill=skill)
     assert metrics["target"] == "skill" and metrics["heldout_tool_mae_m"] < 0.006, metrics  # a constant: ~0.025
     save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
     reset = load_reset(tmp_path)
@@ -205,19 +212,25 @@ def test_regressor_on_the_skill_target_places_the_tool_through_the_skill(tmp_pat
     assert abs(reset.offset(d.dough[0], d.after) - (align_offset(d)[0] + 0.03)) < 0.01
     assert abs(reset.tool_x(skill, d.dough[0], d.after) - true_x) < 0.01
     with pytest.raises(ValueError, match="needs the skill"):
-        train_reset(demos, [], cfg, epochs=1, seed=0)
+        train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(1))
 
 
-def test_checkpoints_without_a_target_regress_the_tool_x():
-    cfg = ResetConfig.from_dict({"points": 32, "widths": [32], "head": [16]})  # a reset.json written before the key
-    assert cfg.target == "tool"
+def test_a_tool_target_regresses_the_tool_x_and_configs_name_every_key():
+    from dataclasses import asdict
+
+    from pasta.core.errors import ConfigError
+
+    cfg = ResetConfig(points=32, widths=[32], head=[16])
+    assert ResetConfig.from_dict(asdict(cfg)) == cfg
+    with pytest.raises(ConfigError, match="reset pose network config lacks target"):
+        ResetConfig.from_dict({k: v for k, v in asdict(cfg).items() if k != "target"})
     reset = ResetPose(ResetPoseNet(cfg))
     piece = np.random.default_rng(0).uniform(0.4, 0.6, (30, 3)).astype(np.float32)
     assert np.isclose(reset.tool_x(_ShiftedEffect(), piece, piece), piece[:, 0].mean() + reset.offset(piece, piece), atol=1e-6)
 
 
 def test_reset_command_rejects_an_unknown_target(tmp_path):
-    from pasta.policy.reset import reset_command
+    from pasta.train.reset import reset_command
 
     with pytest.raises(ValueError, match="target must be tool or skill"):
         reset_command(tmp_path, tmp_path, "cut", {"target": "plane"})
@@ -236,13 +249,13 @@ class _EffectAndSide:
         return target[0] - 0.03
 
 
-def test_regressor_learns_every_value_of_a_multi_value_target():
+def test_regressor_learns_every_value_of_a_multi_value_target(tmp_path):
     rng = np.random.default_rng(0)
     demos = [_cut_demo(i, rng)[0] for i in range(6)]
     with pytest.raises(ValueError, match="1 outputs but the targets have 2 values"):
-        train_reset(demos, [], ResetConfig(points=32, widths=[32], head=[16], target="skill"), epochs=1, skill=_EffectAndSide())
+        train_reset(demos, [], ResetConfig(points=32, widths=[32], head=[16], target="skill"), out=tmp_path, loop=_loop(1), skill=_EffectAndSide())
     cfg = ResetConfig(points=32, widths=[32, 64], head=[64], target="skill", outputs=2)
-    net, metrics = train_reset(demos, [], cfg, epochs=300, batch_size=6, lr=3e-3, noise=0.0, seed=0, skill=_EffectAndSide())
+    net, metrics = train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(300, 6, 3e-3), noise=0.0, skill=_EffectAndSide())
     assert metrics["heldout_tool_mae_m"] < 0.006 and metrics["heldout_mae_other"][0] < 0.25, metrics  # a constant: ~0.45
     reset = ResetPose(net)
     d = demos[0]
@@ -250,8 +263,13 @@ def test_regressor_learns_every_value_of_a_multi_value_target():
     assert y.shape == (2,) and np.isclose(y[0], reset.offset(d.dough[0], d.after))
 
 
-class _FakeEncoder:
+class _FakeEncoder(Encoder):
     """``encode`` -> the centroid; ``decode`` -> ``n`` points at that centroid (a maximal blur)."""
+
+    z_dim = 0
+
+    def sample_prior(self, n, generator):
+        raise NotImplementedError
 
     def encode(self, points):
         return torch.as_tensor(np.asarray(points, np.float32).mean(1))
@@ -260,8 +278,8 @@ class _FakeEncoder:
         return torch.as_tensor(latents)[:, None, :].repeat(1, n, 1)
 
 
-def test_decoded_goal_augmentation_replaces_whole_pieces():
-    from pasta.policy.reset import _goal_draw, decoded_pieces
+def test_decoded_goal_augmentation_replaces_whole_pieces(tmp_path):
+    from pasta.train.reset import _goal_draw, decoded_pieces
 
     rng = np.random.default_rng(0)
     bar = np.c_[np.linspace(0.4, 0.6, 200), np.full(200, 0.02), np.full(200, 0.5)].astype(np.float32)
@@ -277,7 +295,7 @@ def test_decoded_goal_augmentation_replaces_whole_pieces():
     mixed = [len(np.unique(_goal_draw(goal, pieces, 0.5, rng)[:, 0])) for _ in range(20)]
     assert {2, 101, 200} >= set(mixed) and len(set(mixed)) > 1  # pieces replaced one by one, at random
     with pytest.raises(ValueError, match="needs the encoder"):
-        train_reset([_cut_demo(0, rng)[0]], [], ResetConfig(points=16, widths=[16], head=[16]), epochs=1, decoded_goals=0.5)
+        train_reset([_cut_demo(0, rng)[0]], [], ResetConfig(points=16, widths=[16], head=[16]), out=tmp_path, loop=_loop(1), decoded_goals=0.5)
 
 
 def test_piece_share_input_carries_each_goal_pieces_share_of_the_points():
@@ -296,12 +314,15 @@ def test_piece_share_input_carries_each_goal_pieces_share_of_the_points():
 
 
 def test_noisy_decodings_vary_the_shape_and_keep_the_point_count():
-    from pasta.policy.reset import decoded_pieces
+    from pasta.train.reset import decoded_pieces
 
-    class _Shape:
+    class _Shape(Encoder):
         """``z`` (1 value) stretches the piece along x: decoded length 0.1 * (1 + z)."""
 
         z_dim = 1
+
+        def sample_prior(self, n, generator):
+            raise NotImplementedError
 
         def encode(self, points):
             p = torch.as_tensor(np.asarray(points, np.float32))
@@ -316,3 +337,23 @@ def test_noisy_decodings_vary_the_shape_and_keep_the_point_count():
     assert recs.shape == (4, 60, 3)
     lengths = np.ptp(recs[:, :, 0], axis=1)
     assert len(np.unique(lengths.round(4))) == 4 and np.allclose(recs[:, :, 0].mean(1), exact[:, 0].mean(), atol=1e-6)
+
+
+def test_reset_trainer_uses_the_shared_loop_beside_the_policy_and_resumes(tmp_path):
+    """``reset.*`` (best epoch) and ``reset_last.*`` (resume state) beside a policy's own ``model.*`` / ``last.*``:
+    a longer run continues where the last one stopped, as every trainer of the shared loop does."""
+    import json
+
+    rng = np.random.default_rng(2)
+    demos = [_cut_demo(i, rng)[0] for i in range(4)]
+    cfg = ResetConfig(points=16, widths=[16], head=[16])
+    _policy_dir(tmp_path)
+    policy_files = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    train_reset(demos, [], cfg, out=tmp_path, loop=_loop(2, 4))
+    state = json.loads((tmp_path / "reset_last.json").read_text())["state"]
+    assert state["epoch"] == 1 and len(state["history"]) == 2
+    train_reset(demos, [], cfg, out=tmp_path, loop=_loop(3, 4))
+    state = json.loads((tmp_path / "reset_last.json").read_text())["state"]
+    assert state["epoch"] == 2 and [h["epoch"] for h in state["history"]] == [0, 1, 2]  # epoch 2 only was run
+    assert load_reset(tmp_path) is not None
+    assert all((tmp_path / name).read_bytes() == data for name, data in policy_files.items())  # the policy's untouched

@@ -6,14 +6,15 @@ import numpy as np
 import pytest
 import torch
 
+from pasta.core.errors import ConfigError
 from pasta.core.skill import SkillObservation
-from pasta.policy.dataset import DemoSet
+from pasta.train.policy_data import DemoSet
 from pasta.policy.learned import LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.select import select_rule, stop_index
-from pasta.policy.train import PolicyTrainConfig, train_policy
-from pasta.train.data import Demo
+from pasta.train.select import select_rule, stop_index
+from pasta.train.policy import PolicyTrainConfig, train_policy
+from pasta.demos.data import Demo
 
 TINY = dict(encoder=PointNet2Config(levels=[SAConfig(16, 0.1, 8, (16, 16))], global_widths=(32, 64)), head_widths=(64,))
 
@@ -32,20 +33,24 @@ def _frozen_demo(path, steps=8, points=40, seed=0):
     return blob, tool, action
 
 
-def test_old_configs_load_without_the_step_feature():
-    d = PolicyConfig(action_dim=2, **TINY).to_dict()
-    d.pop("step_feature")
-    d.pop("step_scale")
-    cfg = PolicyConfig.from_dict(d)
-    assert cfg.step_feature is False
+def test_configs_round_trip_and_a_missing_key_is_an_error():
     on = PolicyConfig(action_dim=2, step_feature=True, step_scale=30.0, **TINY)
     assert PolicyConfig.from_dict(on.to_dict()) == on
+    d = on.to_dict()
+    d.pop("goal_feature")
+    d["step_featur"] = True
+    with pytest.raises(ConfigError, match="policy network config lacks goal_feature and has unknown step_featur"):
+        PolicyConfig.from_dict(d)
+    d = on.to_dict()
+    del d["encoder"]["pos_scale"]
+    with pytest.raises(ConfigError, match="encoder config lacks pos_scale"):
+        PolicyConfig.from_dict(d)
 
 
 def test_step_changes_the_output_only_with_the_feature():
     torch.manual_seed(0)
     dough, tool, goal = torch.rand(2, 30, 3) * 0.2, torch.rand(2, 10, 3) * 0.2, torch.rand(2, 30, 3) * 0.2
-    on = PolicyNet(PolicyConfig(action_dim=2, step_feature=True, **TINY)).eval()
+    on = PolicyNet(PolicyConfig(action_dim=2, step_feature=True, pose_feature=False, **TINY)).eval()
     with torch.no_grad():
         on.action_head[-1].weight.normal_(0, 1.0)
         a0, _ = on(dough, tool, goal, torch.zeros(2))
@@ -53,7 +58,7 @@ def test_step_changes_the_output_only_with_the_feature():
         assert not torch.allclose(a0, a1)
         with pytest.raises(ValueError):
             on(dough, tool, goal)
-    off = PolicyNet(PolicyConfig(action_dim=2, **TINY)).eval()
+    off = PolicyNet(PolicyConfig(action_dim=2, step_feature=False, pose_feature=False, **TINY)).eval()
     with torch.no_grad():
         torch.testing.assert_close(off(dough, tool, goal, torch.zeros(2))[0], off(dough, tool, goal, torch.full((2,), 40.0))[0])
 
@@ -109,7 +114,7 @@ def test_stop_index_follows_run_skill():
 
 def test_checkpoint_carries_its_stopping_rule(tmp_path):
     from pasta.io.checkpoint import save_checkpoint
-    from pasta.policy.select import write_rule
+    from pasta.train.select import write_rule
 
     torch.manual_seed(0)
     net = PolicyNet(PolicyConfig(action_dim=2, dough_points=16, tool_points=8, goal_points=16, **TINY))
@@ -163,9 +168,8 @@ def test_pose_feature_is_shifted_with_the_clouds_and_checked():
 
 def test_goal_feature_is_the_centroid_offset_and_survives_a_scene_shift():
     torch.manual_seed(0)
-    cfg = PolicyConfig(action_dim=3, step_feature=True, goal_feature=True, **TINY)
+    cfg = PolicyConfig(action_dim=3, step_feature=True, pose_feature=False, goal_feature=True, **TINY)
     assert cfg.aux_dim == 4 and PolicyConfig.from_dict(cfg.to_dict()) == cfg
-    assert PolicyConfig.from_dict({k: v for k, v in cfg.to_dict().items() if k != "goal_feature"}).goal_feature is False
     net = PolicyNet(cfg).eval()
     seen = []
     net.aux.register_forward_hook(lambda mod, inp, out: seen.append(inp[0].clone()))
@@ -179,3 +183,20 @@ def test_goal_feature_is_the_centroid_offset_and_survives_a_scene_shift():
     torch.testing.assert_close(seen[0][:, 1:], offset)  # after the step column
     torch.testing.assert_close(seen[1][:, 1:], offset, rtol=1e-5, atol=1e-5)
     torch.testing.assert_close(a2, a, rtol=1e-4, atol=1e-5)
+
+
+def test_step_and_pose_inputs_are_the_defaults_every_skill_trains_with():
+    """Every shipped policy sees the step and the tool pose: PolicyConfig's (and so `pasta train policy`'s)
+    defaults, so no skill plugin asks for them; `pasta train policy step_feature=false` turns one off."""
+    from pasta.pipeline import PipelineConfig, plan
+    from pasta.plugins import get_plugins
+    from pasta.train.policy import policy_configs
+
+    assert PolicyConfig().step_feature and PolicyConfig().pose_feature and not PolicyConfig().goal_feature
+    _, cfg = policy_configs({"step_feature": "false"})
+    assert not cfg.step_feature and cfg.pose_feature
+    for name in get_plugins().skills.names():
+        asked = dict(get_plugins().skills.load(name).training_defaults.get("policy") or {})
+        assert not {"step_feature", "pose_feature"} & set(asked), name
+    units = plan(PipelineConfig(stages="policy"), {})
+    assert units and all(u.configs[1].step_feature and u.configs[1].pose_feature for u in units)

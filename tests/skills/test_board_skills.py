@@ -108,7 +108,7 @@ def test_lift_demonstrations_stand_the_board_and_end_on_it(tmp_path):
     """`Skill.demo_tools`: the demo machinery places the board the lift package asks for, so a lift
     demonstration ends with the dough on the board, as in the tasks (not lowered back onto the floor)."""
     from pasta.cli import main
-    from pasta.train.data import load_demos
+    from pasta.demos.data import load_demos
     from pasta_skill_lift.tool import BOARD_TOP
 
     assert main(["demos", "skill=lift", "num=1", f"out={tmp_path}", "workers=0", "n_particles=2000",

@@ -1,6 +1,6 @@
 import pytest
 
-from pasta.train.synthetic import write_synthetic_dataset
+from synthetic_demos import write_synthetic_dataset
 
 #: tiny settings: every module trains in about a second on 2 CPU cores
 TINY = {

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from pasta.core.errors import ConfigError
-from pasta.train.pipeline import PipelineConfig, parse_arguments, plan, run_pipeline
-from pasta.train.synthetic import write_synthetic_dataset
+from pasta.pipeline import PipelineConfig, parse_arguments, plan, run_pipeline
+from synthetic_demos import write_synthetic_dataset
 
 
 @pytest.fixture(scope="module")
@@ -57,9 +57,9 @@ def test_default_plan_adds_reset_for_cut_and_select_for_cut_and_roll():
     builtin = [n for n in later if n.split("/")[1] in ("cut", "push", "roll")]
     assert builtin == ["reset/cut", "select/cut", "select/roll"]
     units = {u.name: u for u in plan(PipelineConfig(stages="reset,select"), {})}
-    reset, cut, roll = units["reset/cut"].configs[0], units["select/cut"].configs[0], units["select/roll"].configs[0]
-    # the shipped regressor's settings: the pipeline's (start_step, points) and the cut plugin's own
-    assert (reset.epochs, reset.start_step, reset.points) == (90, 0, 1000)
+    (loop, reset), cut, roll = units["reset/cut"].configs, units["select/cut"].configs[0], units["select/roll"].configs[0]
+    # the shipped regressor's settings: the trainer's defaults (epochs, start_step, points) and the cut plugin's own
+    assert (loop.epochs, reset.start_step, reset.points) == (90, 0, 1000)
     assert (reset.target, reset.piece_share, reset.decoded_goals, reset.decoded_noise) == ("skill", True, 0.5, 0.5)
     policy = {u.name: u for u in plan(PipelineConfig(stages="policy"), {})}
     assert policy["policy/cut"].configs[1].start_at_reset and not policy["policy/roll"].configs[1].start_at_reset
@@ -139,7 +139,7 @@ def test_reset_and_select_run_after_the_policy_then_skip_and_rerun_only_what_cha
 
 
 def test_an_interrupted_select_resumes_at_the_next_config(knife_demos, tmp_path, monkeypatch):
-    import pasta.policy.select as select
+    import pasta.train.select as select
 
     args = _args(knife_demos, tmp_path, "select.n=2", "stages=policy,reset")
     assert _status(run_pipeline(args, echo=lambda _: None)) == {"policy/cut": "ran", "reset/cut": "ran"}

@@ -7,7 +7,7 @@ import pytest
 
 from pasta.cli import main
 from pasta.core.errors import ConfigError
-from pasta.train.pipeline import run_pipeline
+from pasta.pipeline import run_pipeline
 
 TINY_POLICY = {"epochs": "1", "steps_per_epoch": "2", "val_batches": "1", "batch_size": "4", "dough_points": "32",
                "tool_points": "8", "goal_points": "32"}
@@ -94,7 +94,7 @@ def test_bad_arguments_fail_before_any_work(three_demos, tmp_path, tiny):
 def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
     """The demos unit with the simulator replaced by synthetic demonstrations."""
     import pasta.demos.generate as generate
-    from pasta.train.synthetic import synthetic_demo
+    from synthetic_demos import synthetic_demo
 
     def fake_generate(cfg, *, progress=True, backend=None):
         todo = generate.pending(cfg)
@@ -128,7 +128,7 @@ def test_command_line(three_demos, tmp_path, tiny, capsys):
 
 
 def test_demos_stage_adds_the_variant_units_the_skills_declare():
-    from pasta.train.pipeline import PipelineConfig, plan
+    from pasta.pipeline import PipelineConfig, plan
 
     from pasta.demos import demo_skills
 
@@ -149,7 +149,7 @@ def test_demos_stage_adds_the_variant_units_the_skills_declare():
 
 def test_per_skill_settings_come_from_the_skill_plugins():
     """The values the shipped models were trained with, now declared by each skill's training_defaults."""
-    from pasta.train.pipeline import PipelineConfig, parse_arguments, plan
+    from pasta.pipeline import PipelineConfig, parse_arguments, plan
 
     units = {u.name: u for u in plan(PipelineConfig(stages="feasibility,policy"), {})}
     feas = {s: units[f"feasibility/{s}"].configs[1] for s in ("cut", "push", "roll")}

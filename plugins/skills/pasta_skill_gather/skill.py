@@ -100,7 +100,7 @@ class GatherSkill(Skill):
     spec = SPEC
     sweep_half_width = FINGER_HALF[2]
     #: the shipped networks' settings (docs/learning.md, "The board skills"; docs/policies.md)
-    training_defaults = {"feasibility": {"stride": 4, "epochs": 8}, "policy": {"step_feature": True, "pose_feature": True}}
+    training_defaults = {"feasibility": {"stride": 4, "epochs": 8}}
 
     def __init__(self, config: GatherConfig | None = None) -> None:
         super().__init__(config if config is not None else GatherConfig())

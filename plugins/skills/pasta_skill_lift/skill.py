@@ -104,7 +104,7 @@ class LiftSkill(Skill):
     #: same way and never stopped; with it, its own done head stops it, so no stopping rule is chosen)
     training_defaults = {
         "feasibility": {"stride": 4, "epochs": 8},
-        "policy": {"step_feature": True, "pose_feature": True, "goal_feature": True},
+        "policy": {"goal_feature": True},
     }
 
     def __init__(self, config: LiftConfig | None = None) -> None:

@@ -164,7 +164,7 @@ class PushSkill(Skill):
     #: 0.96 on held-out wide configs; the one-frame policy of the default demonstrations alone, 0.45)
     training_defaults = {
         "feasibility": {"stride": 4, "epochs": 20},
-        "policy": {"step_feature": True, "pose_feature": True, "goal_feature": True},
+        "policy": {"goal_feature": True},
     }
 
     def __init__(self, config: PushConfig | None = None) -> None:

@@ -153,7 +153,6 @@ class RollSkill(Skill):
                                                        "0.07-0.15 deep, anywhere in z 0.2-0.8")}
     training_defaults = {
         "feasibility": {"stride": 4, "epochs": 20, "shift_per_positive": 5},
-        "policy": {"step_feature": True, "pose_feature": True},
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7,0.8", "min_steps": "1,20", "max_steps": "0,60"},
     }
 

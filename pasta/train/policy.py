@@ -21,9 +21,10 @@ import numpy as np
 import torch
 
 from pasta.core.errors import ConfigError
-from pasta.policy.dataset import Batch, DemoSet
+from pasta.train.policy_data import Batch, DemoSet
 from pasta.policy.learned import MODULE, LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
+from pasta.train.loop import LoopConfig, fit, numpy_rng
 
 __all__ = ["PolicyTask", "PolicyTrainConfig", "from_reset_pose", "train_policy"]
 
@@ -44,12 +45,12 @@ class PolicyTrainConfig:
         dough_points, tool_points, goal_points: points per source fed to the network.
         max_demos: use at most this many demonstrations (0 = all).
         step_feature: the network also sees the step index within the execution
-            (:attr:`PolicyConfig.step_feature`; for skills whose phase one frame does not show).
-        pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`).
+            (:attr:`PolicyConfig.step_feature`, whose default this is: a skill's phase one frame does not show).
+        pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`, its default).
         goal_feature: the network also sees the goal centroid's offset from the dough centroid
-            (:attr:`PolicyConfig.goal_feature`).
+            (:attr:`PolicyConfig.goal_feature`; push and lift turn it on in their ``training_defaults``).
         start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
-            first step with a vertical action, :func:`pasta.policy.reset.align_offset`), so the step
+            first step with a vertical action, :func:`pasta.train.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
             the policy never learns the align motion the reset pose replaces (cut).
     """
@@ -65,9 +66,9 @@ class PolicyTrainConfig:
     tool_points: int = 100
     goal_points: int = 512
     max_demos: int = 0
-    step_feature: bool = False
-    pose_feature: bool = False
-    goal_feature: bool = False
+    step_feature: bool = PolicyConfig.step_feature
+    pose_feature: bool = PolicyConfig.pose_feature
+    goal_feature: bool = PolicyConfig.goal_feature
     start_at_reset: bool = False
 
     def __post_init__(self) -> None:
@@ -85,17 +86,14 @@ def _to_torch(b: Batch) -> dict[str, torch.Tensor]:
     return out
 
 
-def _np_rng(generator: torch.Generator) -> np.random.Generator:
-    return np.random.default_rng(int(torch.randint(0, 2**62, (1,), generator=generator)))
-
-
 class PolicyTask:
     """The policy as a :class:`pasta.train.loop.TrainTask`.
 
     Args:
         skill: skill name; ``tool``: its tool (saved in the checkpoint).
         train, val: demonstration sets (``val`` may be the training set for tiny runs).
-        cfg: policy training settings; ``network``: network sizes (``action_dim`` is taken from the data).
+        cfg: policy training settings (the point counts and the step / pose / goal inputs of the network);
+            ``network``: the other network sizes (``action_dim`` is taken from the data).
         seed: seed of the fixed validation batches.
         batch_size: size of the validation batches.
     """
@@ -108,9 +106,8 @@ class PolicyTask:
         net_cfg = network or PolicyConfig()
         net_cfg.action_dim = train.action_dim
         net_cfg.dough_points, net_cfg.tool_points, net_cfg.goal_points = cfg.dough_points, cfg.tool_points, cfg.goal_points
-        net_cfg.step_feature = net_cfg.step_feature or cfg.step_feature
-        net_cfg.pose_feature = net_cfg.pose_feature or cfg.pose_feature
-        net_cfg.goal_feature = net_cfg.goal_feature or cfg.goal_feature
+        # the inputs are training settings (key=value on `pasta train policy`); network= gives the sizes
+        net_cfg.step_feature, net_cfg.pose_feature, net_cfg.goal_feature = cfg.step_feature, cfg.pose_feature, cfg.goal_feature
         torch.manual_seed(seed)
         self.model = PolicyNet(net_cfg)
         rng = np.random.default_rng(seed + 7919)
@@ -120,7 +117,7 @@ class PolicyTask:
         return {"skill": self.skill, "tool": self.tool, "network": self.model.cfg.to_dict()}
 
     def batches(self, batch_size: int, generator: torch.Generator) -> Iterator[dict[str, torch.Tensor]]:
-        rng = _np_rng(generator)
+        rng = numpy_rng(generator)
         for _ in range(self.cfg.steps_per_epoch):
             yield _to_torch(self.train_set.sample(rng.integers(0, len(self.train_set), batch_size), rng))
 
@@ -148,7 +145,7 @@ class PolicyTask:
 def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: PolicyConfig | None = None,
               tool: str | None = None, seed: int = 0, batch_size: int = 32) -> PolicyTask:
     """Load the demonstrations of ``skill`` under ``data`` (shared reader), split them by demonstration, build the task."""
-    from pasta.train.data import load_demos, split_by_demo
+    from pasta.demos.data import load_demos, split_by_demo
 
     demos = load_demos(data, [skill], stage="policy")
     if cfg.max_demos > 0:
@@ -167,10 +164,10 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
 
 def from_reset_pose(demo: Any) -> Any:
     """``demo`` from its reset pose on: the steps before its first vertical action (the align phase,
-    :func:`pasta.policy.reset.align_offset`) removed; a demo with no vertical action is kept whole."""
+    :func:`pasta.train.reset.align_offset`) removed; a demo with no vertical action is kept whole."""
     from dataclasses import replace
 
-    from pasta.policy.reset import align_offset
+    from pasta.train.reset import align_offset
 
     _, k = align_offset(demo)
     if k <= 0 or k >= len(demo.action):
@@ -200,8 +197,6 @@ def train_policy(skill: str, data: str | Path, out: str | Path, *, cfg: PolicyTr
     Returns:
         ``(policy, fit_result)``: the best-validation policy and the loop's result.
     """
-    from pasta.train.loop import LoopConfig, fit
-
     cfg = cfg or PolicyTrainConfig()
     loop = loop or LoopConfig()
     task = make_task(skill, data, cfg, network=network, seed=loop.seed, batch_size=loop.batch_size)
@@ -213,6 +208,16 @@ def train_policy(skill: str, data: str | Path, out: str | Path, *, cfg: PolicyTr
 LOOP_DEFAULTS: dict[str, Any] = {"epochs": 40, "batch_size": 32, "lr": 1e-3}
 
 
+def policy_configs(overrides: dict[str, Any] | None = None) -> tuple[LoopConfig, PolicyTrainConfig]:
+    """The loop's and the policy's settings from ``key=value`` overrides over :data:`LOOP_DEFAULTS` (a typo
+    fails with the closest valid key)."""
+    from pasta.config.overrides import build_many
+
+    loop, cfg = build_many({**LOOP_DEFAULTS, **dict(overrides or {})}, [LoopConfig, PolicyTrainConfig],
+                           command="pasta train policy")
+    return loop, cfg
+
+
 def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] | None = None) -> dict[str, Any]:
     """``pasta train policy skill=NAME data=DIR out=MODELS [key=value ...]`` as a function.
 
@@ -222,19 +227,15 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     """
     import json
 
-    from pasta.config.overrides import build_many
     from pasta.policy import POLICY_DIR
-    from pasta.train.loop import LoopConfig
 
     pairs = dict(overrides or {})
     skill = pairs.pop("skill", "")
     if not skill:
         raise ConfigError("`pasta train policy` needs skill=NAME (a registered skill)")
-    loop, cfg = build_many({**LOOP_DEFAULTS, **pairs}, [LoopConfig, PolicyTrainConfig], command="pasta train policy")
+    loop, cfg = policy_configs(pairs)
     directory = Path(out) / POLICY_DIR / skill
     task = make_task(skill, data, cfg, seed=loop.seed, batch_size=loop.batch_size)
-    from pasta.train.loop import fit
-
     result = fit(task, loop, directory)
     figures = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
     metrics = {"module": MODULE, "skill": skill, "data": str(data), "train_demos": len(task.train_set.demos),

@@ -1,4 +1,4 @@
-"""Synthetic demonstrations in the dataset format of :mod:`pasta.train.data`, without the simulator.
+"""Test data: synthetic demonstrations in the dataset format of :mod:`pasta.demos.data`, without the simulator.
 
 Geometry follows the CRS generators of the paper's release (unit-cube workspace, y up, dough resting
 at y = 0.0269), and each demonstration interpolates particle positions over ``steps`` steps:
@@ -10,8 +10,8 @@ at y = 0.0269), and each demonstration interpolates particle positions over ``st
   keeping its volume.
 
 The tool is a small point template following a plausible path; actions are its velocity. This data is
-for tests and for measuring the learning pipeline before simulator demonstrations exist. The three
-generators imitate the built-in skills' geometry and their names only label the dataset folders: this
+for tests only (importable as ``synthetic_demos`` from any test: ``tests/`` is on the path through its
+``conftest.py``). The three generators imitate the built-in skills' geometry and their names only label the dataset folders: this
 module never consults the plugin registry (demonstrations of any registered skill come from
 ``pasta demos``, :mod:`pasta.demos`).
 """

@@ -4,8 +4,14 @@ import numpy as np
 import pytest
 
 from pasta.core.errors import InputError
-from pasta.train.data import load_demo, load_demos, read_manifest, split_by_demo
-from pasta.train.synthetic import synthetic_demo, write_synthetic_dataset
+from pasta.demos.data import load_demo, load_demos, read_manifest, split_by_demo
+from synthetic_demos import synthetic_demo, write_synthetic_dataset
+
+
+@pytest.fixture(scope="module")
+def three_demos(tmp_path_factory):
+    """A dataset of 3 synthetic cut demonstrations, 4 steps each, 400 points."""
+    return write_synthetic_dataset(tmp_path_factory.mktemp("demos"), per_skill=3, skills=("cut",), steps=4, num_points=400)
 
 
 def test_written_format_loads_without_pickle(three_demos):

@@ -1,6 +1,6 @@
 """Reader of demonstration datasets, the split by demonstration, and per-step entity extraction.
 
-Dataset format (written by ``pasta demos`` and by :mod:`pasta.train.synthetic`)::
+Dataset format (written by ``pasta demos``)::
 
     DIR/manifest.json
     DIR/<skill>/demo_00000.npz     np.savez_compressed, loads with allow_pickle=False:

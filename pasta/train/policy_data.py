@@ -1,6 +1,6 @@
 """Behaviour-cloning data for one skill: demonstrations with hindsight goals.
 
-Demonstrations are read with the shared reader :mod:`pasta.train.data` (``DIR/<skill>/demo_00000.npz``
+Demonstrations are read with the shared reader :mod:`pasta.demos.data` (``DIR/<skill>/demo_00000.npz``
 with ``dough (T+1, P, 3)``, ``tool_points (T+1, Tp, 3)``, ``action (T, A)``, ...).
 
 A training sample is a time step ``t`` of a demo and a goal:
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pasta.core.errors import InputError
-from pasta.train.data import Demo
+from pasta.demos.data import Demo
 
 __all__ = ["Batch", "DemoSet"]
 

@@ -7,13 +7,13 @@ initial state with that goal cloud as its sub-goal, and is scored by the normali
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
 
-``python -m pasta.policy.evaluate models=models n=20 seed=1000 [skills=a,b] [scene=VARIANT] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=0] [start_step=S] [out=FILE.json]``
-(the stopping rule: the checkpoint's own, ``config.controller``, unless given; a learned reset pose
-beside the policy, ``reset.*``, is used unless ``reset=0``, its step counter starting at ``start_step``.)
-(the simulator as ``pasta demos`` configures it: 5,000 particles, 1,000 observed.)
-(``skills``: default every registered skill that can make demonstrations; ``scene``: a demonstration scene
-variant every listed skill has, e.g. ``skills=push scene=wide``, ``skills=roll scene=board``.)
-prints the table of docs/policies.md.
+``pasta train evaluate [models=DIR] [n=20] [seed=1000] [skills=a,b] [controllers=learned,heuristic,expert]
+[scene=VARIANT] [done_threshold=T] [min_steps=M] [max_steps=C] [reset=false] [start_step=S] [json=FILE]``
+(:class:`EvaluateConfig`; ``models``: default the shipped weights) prints the table of docs/policies.md. The
+learned controller's stopping rule is the checkpoint's own (``config.controller``) unless given; a learned reset
+pose beside the policy (``reset.*``) is used unless ``reset=false``. The simulator is configured as ``pasta demos``
+configures it (5,000 particles, 1,000 observed); ``scene``: a demonstration scene variant every listed skill has,
+e.g. ``skills=push scene=wide``, ``skills=roll scene=board``.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ import numpy as np
 
 from pasta.core.metrics import emd, normalized_improvement
 
-__all__ = ["SkillConfig", "evaluate_skill", "main", "make_configs"]
+__all__ = ["EvaluateConfig", "SkillConfig", "evaluate_command", "evaluate_skill", "make_configs", "table"]
 
 CONTROLLERS = ("learned", "heuristic", "expert")
 
@@ -143,52 +143,85 @@ def table(results: dict[str, dict[str, list[dict[str, Any]]]]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    import torch
+@dataclass
+class EvaluateConfig:
+    """Settings of ``pasta train evaluate`` (:func:`evaluate_command`).
 
-    from pasta.config.overrides import script_args
+    Attributes:
+        models: models root whose ``policy/<skill>`` the learned controller loads (empty: the shipped weights).
+        n: configs per skill.
+        seed: base seed of their stream (1000: the test configs; 2000: validation; ``pasta demos`` uses 0).
+        skills: comma-separated skills (empty: every registered skill that can make demonstrations).
+        controllers: comma-separated, of ``learned``, ``heuristic``, ``expert``.
+        scene: a demonstration scene variant every listed skill has (e.g. ``skills=push scene=wide``).
+        done_threshold, min_steps, max_steps: the learned controller's stopping rule (negative: the
+            checkpoint's own, ``config.controller``).
+        start_step: the step counter at a learned reset pose (negative: the regressor's own).
+        reset: use a learned reset pose beside the policy (``reset.*``) when there is one.
+        learned_max_steps: step limit of the learned controller (0: the skill's own, like the others).
+        n_particles, obs_points, n_grid, max_particles: the simulator, as ``pasta demos`` configures it.
+        threads: torch CPU threads.
+        json: write the per-config records to this file (empty: none).
+    """
 
-    args = script_args(argv, __doc__, "python -m pasta.policy.evaluate")
-    models = Path(args.get("models", "models"))
-    n, seed = int(args.get("n", 20)), int(args.get("seed", 1000))
-    if "skills" in args:
-        names = [s for s in args["skills"].split(",") if s]
-    else:
-        from pasta.demos import demo_skills
+    models: str = ""
+    n: int = 20
+    seed: int = 1000
+    skills: str = ""
+    controllers: str = ",".join(CONTROLLERS)
+    scene: str = "default"
+    done_threshold: float = -1.0
+    min_steps: int = -1
+    max_steps: int = -1
+    start_step: int = -1
+    reset: bool = True
+    learned_max_steps: int = 0
+    n_particles: int = 5000
+    obs_points: int = 1000
+    n_grid: int = 64
+    max_particles: int = 10000
+    threads: int = 1
+    json: str = ""
 
-        names = demo_skills()
-    controllers = [c for c in args.get("controllers", ",".join(CONTROLLERS)).split(",") if c]
-    torch.set_num_threads(int(args.get("threads", 1)))
+
+def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[str, list[dict[str, Any]]]]:
+    """``pasta train evaluate [key=value ...]`` as a function (:class:`EvaluateConfig` keys): score the
+    controllers on held-out single-skill configs; returns ``{skill: {controller: [per-config records]}}``
+    (:func:`table` prints them as docs/policies.md does)."""
+    from pasta.config.overrides import build
+    from pasta.core.errors import ConfigError, did_you_mean
+    from pasta.demos import demo_skills
+    from pasta.demos.generate import skill_config
     from pasta.plugins import get_plugins
     from pasta.policy import POLICY_DIR
     from pasta.policy.learned import load_policy
     from pasta.sim import SimConfig, Simulator
+    from pasta.train.loop import torch_threads
+    from pasta.weights import models_root
 
-    sim_kw = json.loads(args["sim"]) if "sim" in args else {}
-    sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}),
-                    tools=get_plugins().simulated_tools())
-    from pasta.demos.generate import skill_config
-
-    scene = args.get("scene", "default")
+    cfg = build(EvaluateConfig, dict(overrides or {}), command="pasta train evaluate")
+    names = [s for s in cfg.skills.split(",") if s] or demo_skills()
+    controllers = [c for c in cfg.controllers.split(",") if c]
+    for c in controllers:
+        if c not in CONTROLLERS:
+            raise ConfigError(f"unknown controller '{c}'{did_you_mean(c, CONTROLLERS)}; choose of {', '.join(CONTROLLERS)}")
+    models = models_root(cfg.models)
+    kw: dict[str, Any] = {k: getattr(cfg, k) for k in ("min_steps", "max_steps", "start_step") if getattr(cfg, k) >= 0}
+    if cfg.done_threshold >= 0:
+        kw["done_threshold"] = cfg.done_threshold
+    if not cfg.reset:
+        kw["reset"] = False  # ignore a learned reset pose beside the policy
     results = {}
-    for name in names:
-        skill = get_plugins().skills.create(name, skill_config(name, scene))
-        if "learned" in controllers:
-            kw = {"done_threshold": float(args["done_threshold"])} if "done_threshold" in args else {}
-            for key in ("min_steps", "max_steps", "start_step"):
-                if key in args:
-                    kw[key] = int(args[key])
-            if args.get("reset") in ("0", "false", "off"):
-                kw["reset"] = False  # ignore a learned reset pose beside the policy
-            load_policy(models / POLICY_DIR / name, skill, **kw)
-        max_steps = int(args["learned_max_steps"]) if "learned_max_steps" in args else None
-        results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, n, seed, scene=scene), controllers,
-                                       learned_max_steps=max_steps)
-    print(table(results))
-    if "out" in args:
-        Path(args["out"]).write_text(json.dumps(results, indent=1) + "\n")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    with torch_threads(cfg.threads):
+        sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points, n_grid=cfg.n_grid,
+                                  max_particles=max(cfg.max_particles, cfg.n_particles)),
+                        tools=get_plugins().simulated_tools())
+        for name in names:
+            skill = get_plugins().skills.create(name, skill_config(name, cfg.scene))
+            if "learned" in controllers:
+                load_policy(models / POLICY_DIR / name, skill, **kw)
+            results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, cfg.n, cfg.seed, scene=cfg.scene),
+                                           controllers, learned_max_steps=cfg.learned_max_steps or None)
+    if cfg.json:
+        Path(cfg.json).write_text(json.dumps(results, indent=1) + "\n")
+    return results

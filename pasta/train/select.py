@@ -9,16 +9,17 @@ recorded at every step, scores every rule: restore the state where the rule stop
 (the idle steps of :func:`pasta.tasks.step.run_skill`) and measure the normalised improvement.
 
 Use validation configs (a config stream the test table does not use, e.g. ``seed=2000``), then report
-the chosen rule on the test configs (``seed=1000``) with :mod:`pasta.policy.evaluate`::
+the chosen rule on the test configs (``seed=1000``) with ``pasta train evaluate`` (:mod:`pasta.train.evaluate`)::
 
-    python -m pasta.policy.select models=models skill=roll n=20 seed=2000 \\
-           [thresholds=0.3,0.4,0.5,0.6,0.7] [min_steps=1] [max_steps=0,60,80] [out=FILE.json] [write=1]
-           [start_step=S] [reset=0] [learned_max_steps=N] [threads=1]
+    pasta train select out=MODELS skill=roll [n=20] [seed=2000] [thresholds=0.3,0.4,0.5,0.6,0.7] [min_steps=1]
+                       [max_steps=0,60,80] [write=true] [start_step=S] [reset=false] [learned_max_steps=N] [threads=1]
 
-(any :class:`SelectConfig` key; ``pasta pipeline`` runs it as its ``select`` stage for the policies of the
-skills whose plugin lists ``select`` in its ``training_defaults`` (built-ins: cut and roll), ``write=1``, the result in ``OUT/policy/<skill>/select.json``.)
+(any :class:`SelectConfig` key) scores the policy ``MODELS/policy/<skill>`` and writes the grid, the per-config
+normalised improvement and the selected rule to ``MODELS/policy/<skill>/select.json`` (resumable per config).
+``pasta pipeline`` runs it as its ``select`` stage, with ``write=true``, for the policies of the skills whose
+plugin lists ``select`` in its ``training_defaults`` (built-ins: cut and roll).
 
-(``max_steps`` 0: no cap of the policy's own, only the skill's step limit; ``write=1`` stores the selected
+(``max_steps`` 0: no cap of the policy's own, only the skill's step limit; ``write=true`` stores the selected
 rule in the checkpoint's ``model.json`` under ``config.controller``, which
 :meth:`~pasta.policy.learned.LearnedPolicy.load` uses as its defaults.)
 """
@@ -34,12 +35,12 @@ from typing import Any
 
 import numpy as np
 
-from pasta.core import Controller, SkillObservation
+from pasta.core import Controller, SkillObservation, Stop
 from pasta.core.errors import ConfigError
 from pasta.core.metrics import emd, normalized_improvement
 
-__all__ = ["RecordingController", "SelectConfig", "grid_table", "select_command", "select_rule", "stop_index", "sweep",
-           "write_rule"]
+__all__ = ["RecordingController", "SelectConfig", "grid_table", "select_command", "select_config", "select_rule",
+           "stop_index", "summary", "sweep", "train_command", "write_rule"]
 
 
 def stop_index(probs: Sequence[float], actions: Sequence[np.ndarray], threshold: float, min_steps: int,
@@ -74,12 +75,12 @@ class RecordingController(Controller):
         own = getattr(self.inner, "approach_pose", None)
         return own(*args, **kwargs) if callable(own) else None
 
-    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, Stop | None]:
         self.states.append(self.sim.get_state())
         action, _ = self.inner.act(obs)
         self.probs.append(float(self.inner.last_done_prob))
         self.actions.append(np.asarray(action, np.float32))
-        return action, False
+        return action, None  # never stops: every rule is scored afterwards
 
 
 def sweep(sim: Any, skill: Any, configs: Sequence[Any], thresholds: Sequence[float], min_steps: Sequence[int],
@@ -144,7 +145,7 @@ def write_rule(directory: str | Path, rule: dict[str, Any]) -> None:
 
 @dataclass
 class SelectConfig:
-    """Settings of :func:`select_command` (``python -m pasta.policy.select`` and the pipeline's ``select`` stage).
+    """Settings of :func:`select_command` (``pasta train select`` and the pipeline's ``select`` stage).
 
     Attributes:
         n: validation configs.
@@ -197,6 +198,16 @@ PARTIAL = "select.partial.jsonl"
 RESULT = "select.json"
 
 
+def select_config(overrides: dict[str, Any] | None = None) -> SelectConfig:
+    """:class:`SelectConfig` from ``key=value`` overrides (a typo fails with the closest valid key, a
+    malformed grid with what is wrong)."""
+    from pasta.config.overrides import build
+
+    cfg = build(SelectConfig, dict(overrides or {}), command="pasta train select")
+    cfg.grid()
+    return cfg
+
+
 def select_command(models: str | Path, skill: str, overrides: dict[str, Any] | None = None, *,
                    out: str | Path | None = None, sim: Any = None, resume: bool = True) -> dict[str, Any]:
     """Score every stopping rule of the grid on the validation configs and pick the best (see the module
@@ -209,10 +220,9 @@ def select_command(models: str | Path, skill: str, overrides: dict[str, Any] | N
     over); returns the result.
     ``sim``: a simulator to use (default: a new one with ``n_particles`` / ``obs_points``).
     """
-    from pasta.config.overrides import build
     from pasta.train.loop import torch_threads
 
-    cfg = build(SelectConfig, dict(overrides or {}), command="python -m pasta.policy.select")
+    cfg = select_config(overrides)
     with torch_threads(cfg.threads):
         return _select(models, skill, cfg, out=out, sim=sim, resume=resume)
 
@@ -221,7 +231,7 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
             resume: bool) -> dict[str, Any]:
     from pasta.plugins import get_plugins
     from pasta.policy import POLICY_DIR
-    from pasta.policy.evaluate import make_configs
+    from pasta.train.evaluate import make_configs
     from pasta.policy.learned import load_policy
 
     thresholds, min_steps, caps = cfg.grid()
@@ -259,7 +269,8 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
     result = {"rules": rules, "ni": [r["ni"] for r in rows], "steps": [r["steps"] for r in rows]}
     (t, m, c), best = select_rule(result)
     rule = {"done_threshold": t, "min_steps": m, "max_steps": c}
-    doc = {"skill": skill, "seed": cfg.seed, "n": cfg.n, "models": str(models), "settings": key["config"],
+    doc = {"skill": skill, "seed": cfg.seed, "n": cfg.n, "models": str(models), "policy": str(directory),
+           "settings": key["config"],
            "selected": {**rule, "mean_ni": best}, **result}
     if out is not None:
         out.write_text(json.dumps(doc, indent=1) + "\n")
@@ -292,39 +303,23 @@ def grid_table(doc: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from pasta.config.overrides import script_args
+def train_command(out: str | Path, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """``pasta train select out=MODELS skill=NAME [key=value ...]`` as a function: :func:`select_command` on the
+    policy ``MODELS/policy/<skill>``, its result in ``select.json`` beside it; returns that result."""
+    from pasta.policy import POLICY_DIR
 
-    args = script_args(argv, __doc__, "python -m pasta.policy.select")
-    models = Path(args.pop("models", "models"))
-    name = args.pop("skill", "")
-    if not name:
-        raise SystemExit("python -m pasta.policy.select: give skill=NAME (the policy in MODELS/policy/NAME)")
-    out = args.pop("out", None)
-    sim_kw = json.loads(args.pop("sim")) if "sim" in args else None
-    sim = None
-    if sim_kw is not None:
-        from pasta.sim import SimConfig, Simulator
+    pairs = dict(overrides or {})
+    skill = pairs.pop("skill", "")
+    if not skill:
+        raise ConfigError("`pasta train select` needs skill=NAME (the policy in OUT/policy/NAME)")
+    return select_command(out, skill, pairs, out=Path(out) / POLICY_DIR / skill / RESULT)
 
-        from pasta.plugins import get_plugins
 
-        sim = Simulator(SimConfig(**{"n_particles": 5000, "obs_points": 1000, "max_particles": 10000, **sim_kw}),
-                        tools=get_plugins().simulated_tools())
-    if "reset" in args:
-        args["reset"] = "false" if args["reset"] in ("0", "false", "off") else "true"
-    if "write" in args:
-        args["write"] = "false" if args["write"] in ("0", "false", "") else "true"
-    doc = select_command(models, name, args, out=out, sim=sim)
-    print(grid_table(doc))
+def summary(doc: dict[str, Any]) -> str:
+    """The grid table and the selected rule of a :func:`select_command` result, as ``pasta train select`` prints them."""
     sel = doc["selected"]
-    print(f"selected on seed={doc['seed']}: done_threshold={sel['done_threshold']:g} min_steps={sel['min_steps']} "
-          f"max_steps={sel['max_steps']} (mean NI {sel['mean_ni']:.3f})")
-    if args.get("write") == "true":
-        from pasta.policy import POLICY_DIR
-
-        print(f"wrote the rule to {models / POLICY_DIR / name / 'model.json'} (config.controller)")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
+    lines = [grid_table(doc), f"selected on seed={doc['seed']}: done_threshold={sel['done_threshold']:g} "
+             f"min_steps={sel['min_steps']} max_steps={sel['max_steps']} (mean NI {sel['mean_ni']:.3f})"]
+    if doc["settings"].get("write"):
+        lines.append(f"wrote the rule to {Path(doc['policy']) / 'model.json'} (config.controller)")
+    return "\n".join(lines)

@@ -1,4 +1,4 @@
-"""`python -m pasta.policy.evaluate scene=VARIANT`: held-out configs drawn from a skill's scene variant, with
+"""`pasta train evaluate scene=VARIANT`: held-out configs drawn from a skill's scene variant, with
 the variant's tools placed and its expert parameters, as `pasta demos scene=VARIANT` draws them."""
 
 from types import SimpleNamespace
@@ -9,7 +9,7 @@ import pytest
 from pasta.core import ConfigError
 from pasta.demos.generate import skill_config
 from pasta.plugins import get_plugins
-from pasta.policy.evaluate import make_configs
+from pasta.train.evaluate import make_configs
 
 
 class RecordingSim:

@@ -1,0 +1,39 @@
+"""The README's results tables are exactly what benchmarks/results_table.py generates from docs/results, and every
+row it cites is a 20-config test-set summary with its per-episode rows beside it."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _script():
+    spec = importlib.util.spec_from_file_location("results_table", ROOT / "benchmarks" / "results_table.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_readme_table_is_the_generated_one():
+    rt = _script()
+    readme = (ROOT / "README.md").read_text()
+    assert rt.START in readme and rt.END in readme, "README.md lost its results markers"
+    shown = readme.split(rt.START, 1)[1].split(rt.END, 1)[0].lstrip("\n")
+    assert shown == rt.table(), "README.md's results differ from `python benchmarks/results_table.py`: run it with " \
+                                "--write README.md"
+
+
+def test_every_cited_row_has_its_episodes():
+    rt = _script()
+    names = [f"{task}_pasta{suffix}" for task, _, _ in rt.TASKS for suffix in ("", "_learned")]
+    names += [name for _, _, name, _, _ in rt.ABLATIONS]
+    for name in names:
+        summary = json.loads((rt.RESULTS / f"{name}.json").read_text())
+        rows = [json.loads(line) for line in (rt.RESULTS / f"{name}.jsonl").read_text().splitlines() if line.strip()]
+        assert summary["split"] == "test" and summary["episodes"] == 20 == len(rows), name
+        assert sorted(r["seed"] for r in rows) == list(range(1000, 1020)), name
+        mean = sum(r["improvement"] for r in rows) / len(rows)
+        assert abs(mean - summary["improvement_mean"]) < 1e-9, name
