@@ -382,8 +382,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
 
 
 def logged_sim_config(reader: RunReader) -> Any:
-    """The run's ``sim_config.json`` as a :class:`pasta.sim.SimConfig` (older runs' ``knife_friction`` etc.
-    too). A file that is not a JSON object, an unknown key or a bad value raises a one-line
+    """The run's ``sim_config.json`` as a :class:`pasta.sim.SimConfig`. A file that is not a JSON object, an unknown key or a bad value raises a one-line
     :class:`~pasta.core.errors.ConfigError` naming the attachment, the key and the known keys."""
     from dataclasses import fields
 
@@ -398,8 +397,7 @@ def logged_sim_config(reader: RunReader) -> Any:
         raise ConfigError(f"{where} must hold a JSON object of simulator settings, got {type(data).__name__}")
     known = sorted(f.name for f in fields(SimConfig))
     for key in data:
-        # older runs stored one friction per tool as '<tool>_friction'; from_dict maps those
-        if key not in known and not str(key).endswith("_friction"):
+        if key not in known and not str(key).endswith("_friction"):  # an older format: from_dict names it
             raise ConfigError(f"{where}: unknown key '{key}'{did_you_mean(str(key), known)}; "
                               f"known keys: {', '.join(known)}")
     try:

@@ -36,8 +36,7 @@ class SimConfig:
 
     ``tool_friction`` maps a tool name to its Coulomb friction, overriding the tool's
     ``ToolSpec.friction`` (``sim.tool_friction.knife=0.2``); also a runtime value
-    (``Simulator.set_params(knife_friction=0.2)``). Older configs' ``knife_friction`` etc. load through
-    :meth:`from_dict`.
+    (``Simulator.set_params(knife_friction=0.2)``).
 
     Defaults: grid 64^3 (dx = 0.0156: a 0.05 knife spans 3.2 cells, a 0.08 dough 5.1 cells),
     dt = 1e-4 (CFL ~0.46 for the P-wave speed of E = 5e3, rho = 1), 20 substeps per env step
@@ -114,20 +113,20 @@ class SimConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> SimConfig:
-        """Build from a plain dict (a run's ``sim_config.json``), also from older versions: their
-        ``<tool>_friction`` keys (knife_friction, ...) become ``tool_friction`` entries, and a missing
-        ``fast_math`` means on (what those runs used)."""
+        """Build from a plain dict (a run's ``sim_config.json``) that names every setting. A dict of an older
+        format (per-tool ``<tool>_friction`` keys, no ``fast_math``) is refused with one error naming it."""
         d = dict(d)
-        d.setdefault("fast_math", True)  # runs logged before the field existed ran with Taichi's default, on
         known = {f.name for f in fields(cls)}
-        tf = dict(d.pop("tool_friction", None) or {})
-        for k in list(d):
-            if k not in known and k.endswith("_friction"):
-                tf.setdefault(k[: -len("_friction")], d.pop(k))
+        legacy = sorted(k for k in d if k not in known and k.endswith("_friction")) + (
+            [] if "fast_math" in d else ["no fast_math"])
+        if legacy:
+            raise ConfigError(f"simulator settings of an older format ({', '.join(legacy)}: written before tool "
+                              "frictions were one mapping and fast_math was recorded); replay the run with the pasta "
+                              "that wrote it")
         unknown = sorted(set(d) - known)
         if unknown:
             raise ConfigError(f"unknown simulator settings {unknown}; known: {', '.join(sorted(known))}")
-        return cls(**d, tool_friction=tf)
+        return cls(**d)
 
 
 def check_tool_friction(val: Any) -> dict[str, float]:

@@ -46,7 +46,7 @@ class SimState:
     """Full simulator state as plain numpy arrays (N particles, K tools).
 
     x, v: (N, 3) float32; F, C: (N, 3, 3) float32; tools: (K, 6) float64 rows of
-    (x, y, z, yaw, spin, aperture) (older states have (K, 5), no aperture); obs_index: (P,) int64;
+    (x, y, z, yaw, spin, aperture); obs_index: (P,) int64;
     step: int; tool_names: the K tools' names, row order (empty: the simulator's tool order).
     """
 
@@ -70,12 +70,18 @@ class SimState:
 
     @classmethod
     def load(cls, path: str | Path) -> SimState:
-        """Read an .npz of :meth:`save` (also older ones: three tools, five columns)."""
+        """Read an .npz of :meth:`save`. A state saved before tools were plugins (no ``tool_names``, five tool
+        columns) is refused with one error: replay it with the pasta release that wrote it."""
         with np.load(path, allow_pickle=False) as z:
-            names = tuple(str(s) for s in z["tool_names"]) if "tool_names" in z.files else ()
             tools = z["tools"].astype(np.float64)
-            if tools.ndim != 2 or tools.shape[1] not in (5, 6) or (names and len(names) != tools.shape[0]):
-                raise InputError(f"{path}: tools has shape {tools.shape}, expected (K, 6) or (K, 5) for tools {names}")
+            if "tool_names" not in z.files or tools.ndim != 2 or tools.shape[1] != 6:
+                raise InputError(f"{path}: a simulator state of an older format (tools {tools.shape}, "
+                                 f"{'no ' if 'tool_names' not in z.files else ''}tool names; this pasta reads "
+                                 "named (K, 6) tool rows, written since tools became plugins); replay it with the "
+                                 "pasta that wrote it")
+            names = tuple(str(s) for s in z["tool_names"])
+            if len(names) != tools.shape[0]:
+                raise InputError(f"{path}: tools has shape {tools.shape}, expected ({len(names)}, 6) for tools {names}")
             return cls(
                 x=z["x"].astype(np.float32), v=z["v"].astype(np.float32), F=z["F"].astype(np.float32),
                 C=z["C"].astype(np.float32), tools=tools,
@@ -244,18 +250,17 @@ class Simulator:
 
     def _state_tools(self, state: SimState) -> dict[str, np.ndarray]:
         """Tool rows of ``state`` by name: rows named in ``state.tool_names`` (tools the state does not
-        name are parked), else rows in this simulator's order; 5-column rows get the default aperture."""
+        name are parked), else rows in this simulator's order."""
         tools = np.asarray(state.tools, dtype=np.float64)
         names = tuple(state.tool_names) or self.tool_names
-        if tools.ndim != 2 or tools.shape[1] not in (5, 6) or tools.shape[0] != len(names):
-            raise InputError(f"state.tools has shape {tools.shape}, expected ({len(names)}, 6) (or 5 columns) "
-                             f"for tools {list(names)}")
+        if tools.ndim != 2 or tools.shape[1] != 6 or tools.shape[0] != len(names):
+            raise InputError(f"state.tools has shape {tools.shape}, expected ({len(names)}, 6) for tools {list(names)}")
         unknown = [k for k in names if k not in self._table.specs]
         if unknown:
             raise InputError(f"state has tools {unknown} this simulator does not have; its tools: {', '.join(self.tool_names)}")
         out = {k: self._table.park_row(k) for k in self.tool_names}
         for i, k in enumerate(names):
-            out[k][: tools.shape[1]] = tools[i]
+            out[k][:] = tools[i]
         return out
 
     def set_state(self, state: SimState) -> None:

@@ -28,7 +28,8 @@ def _verify(path) -> int:
 @pytest.mark.parametrize("config, message", [
     (json.dumps({"n_grid": 64, "banana": 1}).encode(), r"unknown key 'banana'; known keys: E, arch, cpu_threads"),
     (json.dumps({"n_gird": 64}).encode(), r"unknown key 'n_gird'; did you mean 'n_grid'\?; known keys: "),
-    (json.dumps({"n_grid": "sixty"}).encode(), r"sim.n_grid='sixty': must be an int"),
+    (json.dumps({"n_grid": "sixty", "fast_math": False}).encode(), r"sim.n_grid='sixty': must be an int"),
+    (json.dumps({"n_grid": 64, "knife_friction": 0.0}).encode(), r"older format \(knife_friction, no fast_math"),
     (b"[1, 2]", r"must hold a JSON object of simulator settings, got list"),
     (b"{not json", r"is not valid JSON"),
 ])

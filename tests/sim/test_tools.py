@@ -164,30 +164,25 @@ def test_tool_friction_override_and_set_params(toolsim):
 
 
 @pytest.mark.sim
-def test_old_state_files_load(toolsim, tmp_path):
-    """A state saved before tools were plugins: three tools, five columns (no aperture)."""
+def test_states_round_trip_and_an_older_format_is_refused(toolsim, tmp_path):
     sim = toolsim
     x = box_particles((0.5, 0.06, 0.5), (0.1, 0.08, 0.07), 300, 0)
-    n = len(x)
-    old = dict(x=x, v=np.zeros((n, 3), np.float32), F=np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)),
-               C=np.zeros((n, 3, 3), np.float32), tools=np.array([[0.3, 0.4, 0.5, 0.1, 0.0], [0.45, 0.8, 0.12, 0.0, 0.0],
-                                                                  [0.75, 0.8, 0.12, 0.0, -0.7]]),
-               obs_index=np.arange(0, n, 3), step=np.int64(7), tool_names=np.array(["knife", "pusher", "roller"]))
-    np.savez(tmp_path / "old.npz", **old)
-    st = SimState.load(tmp_path / "old.npz")
-    assert st.tools.shape == (3, 5) and st.tool_names == ("knife", "pusher", "roller")
-    sim.set_state(st)
-    assert np.allclose(sim.tool_pose("knife")[:3], (0.3, 0.4, 0.5))
-    assert sim.tool_state("roller")["spin"] == -0.7
-    assert sim.tool_pose("test_gripper")[1] == pytest.approx(0.8)  # not in the file: parked
+    sim.reset(x, seed=0)
     back = sim.get_state()
     assert back.tools.shape == (len(sim.tool_names), 6) and back.tool_names == sim.tool_names
     back.save(tmp_path / "new.npz")
     again = SimState.load(tmp_path / "new.npz")
     assert np.array_equal(again.tools, back.tools) and again.tool_names == back.tool_names
+    # a state saved before tools were plugins: three unnamed tools, five columns (no aperture)
+    n = len(x)
+    old = dict(x=x, v=np.zeros((n, 3), np.float32), F=np.tile(np.eye(3, dtype=np.float32), (n, 1, 1)),
+               C=np.zeros((n, 3, 3), np.float32), tools=np.zeros((3, 5)), obs_index=np.arange(0, n, 3), step=np.int64(7))
+    np.savez(tmp_path / "old.npz", **old)
+    with pytest.raises(InputError, match=r"older format \(tools \(3, 5\), no tool names"):
+        SimState.load(tmp_path / "old.npz")
     # rows without names are in the simulator's order; the count must match
     with pytest.raises(InputError, match="state.tools"):
-        sim.set_state(SimState(st.x, st.v, st.F, st.C, st.tools, st.obs_index))
+        sim.set_state(SimState(back.x, back.v, back.F, back.C, back.tools[:2], back.obs_index))
 
 
 def test_tool_shapes_for_viewers():
@@ -204,17 +199,19 @@ def test_tool_shapes_for_viewers():
     assert (name, kind) == ("roller", "cylinder") and np.allclose(size, (0.06, 0.06, 0.15)) and np.allclose(centre, (0.4, 0.1, 0.5))
 
 
-def test_simconfig_reads_older_run_configs_and_omegaconf():
+def test_simconfig_refuses_older_run_configs_and_reads_omegaconf():
     from dataclasses import asdict
 
     from omegaconf import OmegaConf
 
-    old = {k: v for k, v in asdict(SimConfig()).items() if k != "tool_friction"}
-    old.update(knife_friction=0.0, pusher_friction=5.0, roller_friction=0.9)  # a sim_config.json of older runs
-    cfg = SimConfig.from_dict(old)
-    assert cfg.tool_friction == {"knife": 0.0, "pusher": 5.0, "roller": 0.9}
+    now = asdict(SimConfig(tool_friction={"knife": 0.1}))
+    assert SimConfig.from_dict(now) == SimConfig(tool_friction={"knife": 0.1})
+    old = {k: v for k, v in now.items() if k not in ("tool_friction", "fast_math")}
+    old.update(knife_friction=0.0, pusher_friction=5.0)  # a sim_config.json of older runs
+    with pytest.raises(ConfigError, match="older format .knife_friction, pusher_friction, no fast_math"):
+        SimConfig.from_dict(old)
     with pytest.raises(ConfigError, match="unknown simulator settings"):
-        SimConfig.from_dict({**old, "n_gird": 3})
+        SimConfig.from_dict({**now, "n_gird": 3})
     conf = OmegaConf.merge(OmegaConf.structured(SimConfig), OmegaConf.from_dotlist(["tool_friction.knife=0.3"]))
     assert OmegaConf.to_object(conf).tool_friction == {"knife": 0.3}
     with pytest.raises(ConfigError, match="tool_friction.knife"):
