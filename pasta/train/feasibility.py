@@ -46,11 +46,6 @@ class FeasibilityTrainConfig:
             that cannot carry dough far (roll, cut): without them the network accepts an output a few
             centimetres from where the skill leaves it, and plans inherit that slack. 0 (default) for push.
         shift_min, shift_max: the displacement range of those negatives.
-        shift_axes: ``xz`` (default: a direction in the table plane) or ``xyz`` (any direction in space),
-            for skills whose output height matters. Tried for the lift, whose network rates a piece "set
-            down" at floor height, under the board, as feasible as one on it: with ``xyz`` it still did
-            (f 0.935 against 0.827 for the real lift, LiftSpread seed 1000), so the shipped lift network
-            does not use it; the planner's per-skill heights fix that (docs/learning.md).
         shift_entities: which produced entities a near miss moves: ``all`` (default: all by one offset)
             or ``one`` (one of them, chosen uniformly; the rest stay). For skills with several outputs
             whose layout is fixed by the skill: the cut's two halves lie side by side, and a cut network
@@ -72,7 +67,6 @@ class FeasibilityTrainConfig:
     shift_per_positive: int = 0
     shift_min: float = 0.03
     shift_max: float = 0.1
-    shift_axes: str = "xz"
     shift_entities: str = "all"
     z_noise: float = 0.02
     t_noise: float = 0.01
@@ -87,20 +81,8 @@ class FeasibilityTrainConfig:
 
 
 def train_dict(cfg: Any) -> dict[str, Any]:
-    """``asdict(cfg)`` without ``flat`` when it is false, ``shift_axes`` when it is ``xz`` and ``shift_entities``
-    when it is ``all`` (and the cost's ``translated_fraction`` when 0, with ``translate_max``), so checkpoints
-    of earlier runs keep their old config (and resume)."""
-    d = asdict(cfg)
-    for key, before in _ADDED_LATER.items():
-        if key in d and d[key] == before:
-            d.pop(key)
-            if key == "translated_fraction":  # untranslated pairs: translate_max is unused
-                d.pop("translate_max", None)
-    return d
-
-
-#: settings added after checkpoints were shipped, with the value that behaves as before they existed
-_ADDED_LATER = {"flat": False, "shift_axes": "xz", "shift_entities": "all", "translated_fraction": 0.0}
+    """The settings saved with the weights (``model.json``'s ``train``)."""
+    return asdict(cfg)
 
 
 def scope_config(cfg: Any) -> dict[str, str]:
@@ -143,23 +125,17 @@ def hard_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, prior: 
 
 
 def shifted_negatives(u_in: torch.Tensor, u_out: torch.Tensor, copies: int, z_dim: int, low: float, high: float,
-                      generator: torch.Generator, axes: str = "xz", entities: str = "all") -> tuple[torch.Tensor, torch.Tensor]:
+                      generator: torch.Generator, entities: str = "all") -> tuple[torch.Tensor, torch.Tensor]:
     """``copies`` versions of each tuple whose produced entities move by one random offset of length in
-    ``[low, high]`` (centroid ``t = u[z_dim:z_dim+3]``, y is up): in the table plane (``axes="xz"``, the
-    draws of earlier versions) or in any direction (``"xyz"``, uniform on the sphere); all of them
-    (``entities="all"``) or one uniformly chosen (``"one"``, the same draws otherwise)."""
-    if axes not in ("xz", "xyz"):
-        raise ConfigError(f"shift_axes must be 'xz' or 'xyz', got {axes!r}")
+    ``[low, high]`` in the table plane (centroid ``t = u[z_dim:z_dim+3]``, y is up): all of them
+    (``entities="all"``) or one uniformly chosen (``"one"``, the same draws otherwise). (Offsets in any
+    direction, for skills whose output height matters, did not fix the lift: docs/experiments.)"""
     if entities not in ("all", "one"):
         raise ConfigError(f"shift_entities must be 'all' or 'one', got {entities!r}")
     u_in, u_out = u_in.repeat(copies, 1, 1), u_out.repeat(copies, 1, 1).clone()
     b = u_out.shape[0]
-    if axes == "xz":
-        angle = torch.rand(b, generator=generator) * 2 * torch.pi
-        direction = torch.stack([torch.cos(angle), torch.zeros(b), torch.sin(angle)], 1)
-    else:
-        direction = torch.randn(b, 3, generator=generator)
-        direction = direction / direction.norm(dim=1, keepdim=True).clamp(min=1e-12)
+    angle = torch.rand(b, generator=generator) * 2 * torch.pi
+    direction = torch.stack([torch.cos(angle), torch.zeros(b), torch.sin(angle)], 1)
     length = low + torch.rand(b, generator=generator) * (high - low)
     offset = (length[:, None] * direction)[:, None, :].expand(-1, u_out.shape[1], -1)
     if entities == "one":  # (B, M, 1): only the chosen entity of each tuple moves
@@ -190,7 +166,7 @@ class FeasibilityTask:
         plain = hard_negatives(self.val_in, self.val_out, cfg.hard_per_positive or MEASURED_HARD, self.prior, gen)
         # near misses, always measured (val_auc_shift), trained on only with shift_per_positive > 0
         self.val_shift = shifted_negatives(self.val_in, self.val_out, 2, self.z_dim, cfg.shift_min, cfg.shift_max, gen,
-                                           cfg.shift_axes, cfg.shift_entities)
+                                           cfg.shift_entities)
         self.val_hard = _cat(plain, self.val_shift) if cfg.shift_per_positive > 0 else plain
         trained = ([plain] if cfg.hard_per_positive > 0 else []) + ([self.val_shift] if cfg.shift_per_positive > 0 else [])
         self.val_hard_trained = functools.reduce(_cat, trained) if trained else None
@@ -224,7 +200,7 @@ class FeasibilityTask:
             hard = hard_negatives(u_in, u_out, self.cfg.hard_per_positive, self.prior, generator)
         if self.cfg.shift_per_positive > 0:
             near = shifted_negatives(u_in, u_out, self.cfg.shift_per_positive, self.z_dim, self.cfg.shift_min,
-                                     self.cfg.shift_max, generator, self.cfg.shift_axes, self.cfg.shift_entities)
+                                     self.cfg.shift_max, generator, self.cfg.shift_entities)
             hard = near if hard is None else _cat(hard, near)
         b, n, m = len(batch), u_in.shape[1], u_out.shape[1]
         rand = (self.prior(b * n, generator).view(b, n, -1), self.prior(b * m, generator).view(b, m, -1))

@@ -16,56 +16,46 @@ def tuples(b: int = 400):
     return torch.rand(b, 1, Z + 3, generator=g), torch.rand(b, 2, Z + 3, generator=g)
 
 
-@pytest.mark.parametrize("axes", ["xz", "xyz"])
-def test_outputs_move_together_by_the_asked_length(axes):
+def test_outputs_move_together_by_the_asked_length_in_the_table_plane():
     u_in, u_out = tuples()
-    n_in, n_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(1), axes)
+    n_in, n_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(1))
     assert n_in.shape == (1200, 1, Z + 3) and torch.equal(n_in, u_in.repeat(3, 1, 1))  # inputs untouched
     d = n_out - u_out.repeat(3, 1, 1)
     assert torch.equal(d[..., :Z], torch.zeros_like(d[..., :Z]))  # shapes untouched
     assert torch.allclose(d[:, 0, Z:], d[:, 1, Z:], atol=1e-6)  # both produced entities by one offset
     length = d[:, 0, Z:].norm(dim=-1)
     assert float(length.min()) >= 0.03 - 1e-6 and float(length.max()) <= 0.1 + 1e-6
-    dy = d[:, 0, Z + 1].abs()
-    if axes == "xz":
-        assert float(dy.max()) < 1e-6  # in the table plane
-    else:  # uniform directions: |dy| / length is uniform on [0, 1]
-        assert 0.4 < float((dy / length).mean()) < 0.6
+    assert float(d[:, 0, Z + 1].abs().max()) < 1e-6  # in the table plane
 
 
 def test_table_plane_draws_are_the_earlier_ones():
     u_in, u_out = tuples(50)
     _, got = shifted_negatives(u_in, u_out, 2, Z, 0.03, 0.1, torch.Generator().manual_seed(5))
-    g = torch.Generator().manual_seed(5)  # the formula before shift_axes existed
+    g = torch.Generator().manual_seed(5)  # the formula, written out
     ref = u_out.repeat(2, 1, 1).clone()
     angle = torch.rand(100, generator=g) * 2 * torch.pi
     length = 0.03 + torch.rand(100, generator=g) * 0.07
     ref[:, :, Z] += (length * torch.cos(angle))[:, None]
     ref[:, :, Z + 2] += (length * torch.sin(angle))[:, None]
     assert torch.equal(got, ref)
-    assert "shift_axes" not in train_dict(FeasibilityTrainConfig(skill="roll"))  # old checkpoints still resume
-    assert train_dict(FeasibilityTrainConfig(skill="lift", shift_axes="xyz"))["shift_axes"] == "xyz"
-    with pytest.raises(ConfigError, match="shift_axes"):
-        shifted_negatives(u_in, u_out, 1, Z, 0.03, 0.1, torch.Generator(), "y")
 
 
 def test_one_entity_moves_and_the_others_stay():
     u_in, u_out = tuples()
-    n_in, n_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2), "xz", "one")
+    n_in, n_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2), "one")
     assert torch.equal(n_in, u_in.repeat(3, 1, 1))
     d = (n_out - u_out.repeat(3, 1, 1))[..., Z:].norm(dim=-1)  # (B, 2) displacement per produced entity
     moved = d > 1e-6
     assert torch.equal(moved.sum(1), torch.ones(1200, dtype=torch.long))  # exactly one of the two
     assert 0.4 < float(moved[:, 0].float().mean()) < 0.6  # either one, uniformly
     assert float(d[moved].min()) >= 0.03 - 1e-6 and float(d[moved].max()) <= 0.1 + 1e-6
-    # the default moves all: the earlier negatives, and old checkpoint configs stay as they were
-    _, all_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2), "xz")
+    # the default moves all
+    _, all_out = shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2))
     assert torch.equal(all_out, shifted_negatives(u_in, u_out, 3, Z, 0.03, 0.1, torch.Generator().manual_seed(2),
-                                                  "xz", "all")[1])
-    assert "shift_entities" not in train_dict(FeasibilityTrainConfig(skill="cut"))
+                                                  "all")[1])
     assert train_dict(FeasibilityTrainConfig(skill="cut", shift_entities="one"))["shift_entities"] == "one"
     with pytest.raises(ConfigError, match="shift_entities"):
-        shifted_negatives(u_in, u_out, 1, Z, 0.03, 0.1, torch.Generator(), "xz", "some")
+        shifted_negatives(u_in, u_out, 1, Z, 0.03, 0.1, torch.Generator(), "some")
 
 
 def _task(hard: int, shift: int = 0):

@@ -331,7 +331,7 @@ class CutSkill(Skill):
     training_defaults = {
         "feasibility": {"stride": 3, "shift_per_positive": 5, "shift_entities": "one", "shift_max": 0.25},
         "policy": {"start_at_reset": True},
-        "reset": {"target": "skill", "piece_share": True, "x_share": True, "decoded_goals": 0.5, "decoded_noise": 0.5},
+        "reset": {},  # the reset stage runs for the cut, with the trainer's defaults (the shipped regressor's)
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7", "max_steps": "0,40,45,50,55,60,65,70,80,100"},
     }
 
