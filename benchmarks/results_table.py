@@ -39,6 +39,8 @@ ABLATIONS = (
     ("cut_rearrange", "no sampling (one initialisation per attention structure)",
      "cut_rearrange_pasta_attention-enumerate_num_samples-1_refine_sequences-0",
      "planner.attention=enumerate planner.num_samples=1 planner.refine_sequences=0", None),
+    ("cut_rearrange", "no gradient (cross-entropy method, 1,024 samples per sequence)", "cut_rearrange_pasta_planner-sampling",
+     "planner=sampling", None),
     ("crs", "Flat 3D (the whole scene as one latent)", "crs_flat", "method=flat", (-0.712, 0.00)),
 )
 
