@@ -21,11 +21,11 @@ $(STAMP): pyproject.toml constraints.txt
 
 # crs on the first fixed test config with the shipped weights: plan (exhaustive), execute with the learned
 # policies, score; writes out/demo/run.mcap (Foxglove, `pasta replay`) and out/demo/summary.png.
-# DEMO_ARGS="controller=heuristic" executes with the heuristic controllers instead (later keys win).
+# DEMO_ARGS="execute.controller=heuristic" executes with the heuristic controllers instead (later keys win).
 DEMO_ARGS ?=
 
 demo: $(STAMP)
-	$(PY) -m pasta run task=crs seed=1000 controller=learned log=out/demo/run.mcap summary=out/demo/summary.png $(DEMO_ARGS)
+	$(PY) -m pasta run task=crs seed=1000 execute.controller=learned log=out/demo/run.mcap summary=out/demo/summary.png $(DEMO_ARGS)
 
 # Retrain every module (demos -> vae -> feasibility -> cost -> policies -> cut reset pose -> stopping rules);
 # resumable. See `pasta pipeline --help`.
