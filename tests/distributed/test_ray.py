@@ -89,19 +89,21 @@ def _rows(path):
 def test_eval_rows_same_local_and_ray(ray_local, tmp_path, monkeypatch, capfd):
     # a short planner and episode: the rows are what is compared, not how good they are
     args = ["eval", "task=push", "method=pasta", "num=2", "planner.num_samples=32", "planner.iterations=20",
-            "execute.max_steps=25"]
+            "skill.push.max_steps=25"]
     assert main(args + [f"out={tmp_path / 'local'}"]) == 0
     monkeypatch.setenv(TEST_KILL_ENV, "1001@1")  # the Ray worker on episode 1001 dies once: it is rerun
     assert main(args + [f"out={tmp_path / 'ray'}", "backend=ray", "workers=2"]) == 0
     err = capfd.readouterr().err
     assert "Ray worker died (WorkerCrashedError) on episode 1001; episode 1001 goes back to the queue" in err
     assert "on ray (local instance) with 2 workers" in err
-    local, ray = _rows(tmp_path / "local" / "push_pasta.jsonl"), _rows(tmp_path / "ray" / "push_pasta.jsonl")
+    # the file is named after the settings (push_pasta_<setting>...): the same name in both folders
+    (name,) = [p.stem for p in (tmp_path / "local").glob("push_pasta*.jsonl")]
+    local, ray = _rows(tmp_path / "local" / f"{name}.jsonl"), _rows(tmp_path / "ray" / f"{name}.jsonl")
     assert sorted(local) == sorted(ray) == [1000, 1001]
     for seed in local:
         assert ray[seed] == local[seed]
-    a = json.loads((tmp_path / "local" / "push_pasta.json").read_text())
-    b = json.loads((tmp_path / "ray" / "push_pasta.json").read_text())
+    a = json.loads((tmp_path / "local" / f"{name}.json").read_text())
+    b = json.loads((tmp_path / "ray" / f"{name}.json").read_text())
     assert (a["improvement_mean"], a["success_rate"]) == (b["improvement_mean"], b["success_rate"])
 
 
