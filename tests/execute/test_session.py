@@ -35,6 +35,29 @@ def test_session_loads_the_shipped_weights_by_default():
     assert build_session("crs", planner="sampling").cfg.planner.name == "sampling"
 
 
+def test_the_shipped_flat_baseline_loads_by_default():
+    from pasta.nn.flat import FlatSkill
+
+    session = build_session("crs", method="flat")  # the README's Flat 3D row: pasta/weights/flat
+    assert session.models == ROOT and session.encoder.scope == "scene"
+    assert [s.name for s in session.skills] == ["cut", "push", "roll"]
+    assert all(isinstance(s, FlatSkill) and (s.n_in, s.n_out) == (1, 1) for s in session.skills)
+    assert all(s.feasibility_model is not None for s in session.skills)
+
+
+def test_the_no_hard_negatives_root_is_the_shipped_weights_but_its_feasibility_networks():
+    nohn = ROOT / "ablations" / "no_hard_negatives"
+    # the VAE and cost are links to the shipped ones, so the networks' latent space is the one they were trained on
+    for module in ("vae", "cost"):
+        assert (nohn / module).resolve() == (ROOT / module).resolve()
+    assert sorted(p.name for p in nohn.iterdir()) == ["cost", "feasibility", "vae"]
+    assert sorted(p.name for p in (nohn / "feasibility").iterdir()) == ["cut", "push"]
+    session = build_session("cut_rearrange", models=str(nohn), skills="cut,push")
+    assert session.models == nohn and [s.name for s in session.skills] == ["cut", "push"]
+    assert session.feasibility_training() == {s: {"hard_per_positive": 0, "shift_per_positive": 0} for s in ("cut", "push")}
+    assert build_session("cut_rearrange", skills="cut,push").feasibility_training()["cut"]["hard_per_positive"] > 0
+
+
 def test_session_rejects_unknown_method_task_and_skeleton():
     with pytest.raises(ConfigError, match="method=pastaa: must be one of " + ", ".join(METHODS) + "; did you mean 'pasta'"):
         build_session("crs", method="pastaa")
