@@ -144,7 +144,43 @@ def table(results: dict[str, dict[str, list[dict[str, Any]]]]) -> str:
 
 
 @dataclass
-class EvaluateConfig:
+class SkillRunSettings:
+    """What ``pasta train evaluate`` and ``pasta train select`` share: how a learned policy starts and stops, and
+    the single-skill simulator they run it in (the one ``pasta demos`` makes).
+
+    Attributes:
+        start_step: the step counter at a learned reset pose (negative: the regressor's own ``start_step``).
+        reset: use a learned reset pose beside the policy (``reset.*``) when there is one.
+        learned_max_steps: step limit of the learned controller (0: the skill's own).
+        n_particles, obs_points: simulator particles and observed points (``pasta demos``'s 5,000 and 1,000).
+        n_grid, max_particles: the simulator's grid and particle capacity (64 and 10,000, as ``pasta demos``).
+    """
+
+    start_step: int = -1
+    reset: bool = True
+    learned_max_steps: int = 0
+    n_particles: int = 5000
+    obs_points: int = 1000
+    n_grid: int = 64
+    max_particles: int = 10000
+
+    def policy_options(self) -> dict[str, Any]:
+        """``load_policy`` keywords for ``start_step`` and ``reset`` (what is not the checkpoint's own)."""
+        return {**({"start_step": self.start_step} if self.start_step >= 0 else {}),
+                **({} if self.reset else {"reset": False})}  # reset=False: ignore a learned reset pose
+
+    def make_sim(self) -> Any:
+        """The single-skill simulator, with every registered simulated tool."""
+        from pasta.plugins import get_plugins
+        from pasta.sim import SimConfig, Simulator
+
+        return Simulator(SimConfig(n_particles=self.n_particles, obs_points=self.obs_points, n_grid=self.n_grid,
+                                   max_particles=max(self.max_particles, self.n_particles)),
+                         tools=get_plugins().simulated_tools())
+
+
+@dataclass
+class EvaluateConfig(SkillRunSettings):
     """Settings of ``pasta train evaluate`` (:func:`evaluate_command`).
 
     Attributes:
@@ -156,10 +192,7 @@ class EvaluateConfig:
         scene: a demonstration scene variant every listed skill has (e.g. ``skills=push scene=wide``).
         done_threshold, min_steps, max_steps: the learned controller's stopping rule (negative: the
             checkpoint's own, ``config.controller``).
-        start_step: the step counter at a learned reset pose (negative: the regressor's own).
-        reset: use a learned reset pose beside the policy (``reset.*``) when there is one.
-        learned_max_steps: step limit of the learned controller (0: the skill's own, like the others).
-        n_particles, obs_points, n_grid, max_particles: the simulator, as ``pasta demos`` configures it.
+        start_step, reset, learned_max_steps, n_particles, obs_points, n_grid, max_particles: :class:`SkillRunSettings`.
         threads: torch CPU threads.
         json: write the per-config records to this file (empty: none).
     """
@@ -173,13 +206,6 @@ class EvaluateConfig:
     done_threshold: float = -1.0
     min_steps: int = -1
     max_steps: int = -1
-    start_step: int = -1
-    reset: bool = True
-    learned_max_steps: int = 0
-    n_particles: int = 5000
-    obs_points: int = 1000
-    n_grid: int = 64
-    max_particles: int = 10000
     threads: int = 1
     json: str = ""
 
@@ -195,7 +221,6 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
     from pasta.plugins import get_plugins
     from pasta.policy import POLICY_DIR
     from pasta.policy.learned import load_policy
-    from pasta.sim import SimConfig, Simulator
     from pasta.train.loop import torch_threads
     from pasta.weights import models_root
 
@@ -206,16 +231,13 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
         if c not in CONTROLLERS:
             raise ConfigError(f"unknown controller '{c}'{did_you_mean(c, CONTROLLERS)}; choose of {', '.join(CONTROLLERS)}")
     models = models_root(cfg.models)
-    kw: dict[str, Any] = {k: getattr(cfg, k) for k in ("min_steps", "max_steps", "start_step") if getattr(cfg, k) >= 0}
+    kw: dict[str, Any] = {k: getattr(cfg, k) for k in ("min_steps", "max_steps") if getattr(cfg, k) >= 0}
     if cfg.done_threshold >= 0:
         kw["done_threshold"] = cfg.done_threshold
-    if not cfg.reset:
-        kw["reset"] = False  # ignore a learned reset pose beside the policy
+    kw.update(cfg.policy_options())
     results = {}
     with torch_threads(cfg.threads):
-        sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points, n_grid=cfg.n_grid,
-                                  max_particles=max(cfg.max_particles, cfg.n_particles)),
-                        tools=get_plugins().simulated_tools())
+        sim = cfg.make_sim()
         for name in names:
             skill = get_plugins().skills.create(name, skill_config(name, cfg.scene))
             if "learned" in controllers:

@@ -38,6 +38,7 @@ import numpy as np
 from pasta.core import Controller, SkillObservation, Stop
 from pasta.core.errors import ConfigError
 from pasta.core.metrics import emd, normalized_improvement
+from pasta.train.evaluate import SkillRunSettings
 
 __all__ = ["RecordingController", "SelectConfig", "grid_table", "select_command", "select_config", "select_rule",
            "stop_index", "summary", "sweep", "train_command", "write_rule"]
@@ -144,7 +145,7 @@ def write_rule(directory: str | Path, rule: dict[str, Any]) -> None:
 
 
 @dataclass
-class SelectConfig:
+class SelectConfig(SkillRunSettings):
     """Settings of :func:`select_command` (``pasta train select`` and the pipeline's ``select`` stage).
 
     Attributes:
@@ -153,11 +154,8 @@ class SelectConfig:
         thresholds: comma-separated done thresholds to try.
         min_steps: comma-separated ``min_steps`` values.
         max_steps: comma-separated caps on the policy's own actions (0: none).
-        start_step: the step counter at a learned reset pose (-1: the regressor's own ``start_step``).
-        reset: use a learned reset pose beside the policy (``reset.*``) when there is one.
-        learned_max_steps: step limit of the rollout (0: the skill's own, or the largest cap if larger).
-        n_particles, obs_points: simulator particles and observed points (``pasta demos``'s 5,000 and 1,000).
-        n_grid, max_particles: the simulator's grid and particle capacity (64 and 10,000, as ``pasta demos``).
+        start_step, reset, n_particles, obs_points, n_grid, max_particles: :class:`SkillRunSettings`;
+            ``learned_max_steps`` limits the rollout (0: the skill's own, or the largest cap if larger).
         write: store the selected rule in the checkpoint's ``model.json`` (``config.controller``).
         threads: torch CPU threads (0: leave as is).
         progress: print a line per config (stderr).
@@ -168,13 +166,6 @@ class SelectConfig:
     thresholds: str = "0.3,0.4,0.5,0.6,0.7"
     min_steps: str = "1"
     max_steps: str = "0"
-    start_step: int = -1
-    reset: bool = True
-    learned_max_steps: int = 0
-    n_particles: int = 5000
-    obs_points: int = 1000
-    n_grid: int = 64
-    max_particles: int = 10000
     write: bool = False
     threads: int = 1
     progress: bool = True
@@ -237,17 +228,9 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
     thresholds, min_steps, caps = cfg.grid()
     directory = Path(models) / POLICY_DIR / skill
     out = Path(out) if out is not None else None
-    if sim is None:
-        from pasta.sim import SimConfig, Simulator
-
-        sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points, n_grid=cfg.n_grid,
-                                  max_particles=max(cfg.max_particles, cfg.n_particles)),
-                        tools=get_plugins().simulated_tools())
+    sim = sim if sim is not None else cfg.make_sim()
     sk = get_plugins().skills.create(skill)
-    kw: dict[str, Any] = {"start_step": cfg.start_step} if cfg.start_step >= 0 else {}
-    if not cfg.reset:
-        kw["reset"] = False
-    load_policy(directory, sk, **kw)
+    load_policy(directory, sk, **cfg.policy_options())
     limit = max([cfg.learned_max_steps or int(getattr(sk, "max_steps", 50)), *caps])
     configs = make_configs(sk, sim, cfg.n, cfg.seed)
     partial = out.with_name(PARTIAL) if out is not None else None
