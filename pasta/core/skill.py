@@ -162,6 +162,11 @@ class Skill:
     #: the skill (1 -> 1) leaves its piece's horizontal centroid about where it was (a roll spreads the
     #: piece where it lies): the executor then aims an earlier step at the goal piece's place directly
     keeps_position: ClassVar[bool] = False
+    #: Chamfer distance within which a watched (learned) step of this skill that keeps the piece count finds
+    #: its piece at its goal, so the step is not started (``None``: ``perception.unchanged_threshold``). A
+    #: skill whose smallest real change is larger says so: a roll cannot flatten an already rolled piece,
+    #: only spread it again
+    at_goal: ClassVar[float | None] = None
     #: demonstration scene variants besides ``"default"``: name -> :class:`DemoVariant`
     demo_variants: ClassVar[Mapping[str, DemoVariant]] = {}
     #: ``pasta pipeline`` settings of this skill's units, ``{stage: {key: value}}``, over the stage defaults

@@ -96,9 +96,11 @@ class StepMonitor(ABC):
 
     @abstractmethod
     def should_run(self, piece: np.ndarray, goal: np.ndarray | None, *, keeps_count: bool,
-                   watch: bool) -> Stop | None:
+                   watch: bool, at_goal: float | None = None) -> Stop | None:
         """``None``: run the step on ``piece (P, 3)`` towards ``goal (G, 3)``; a :class:`Stop`: skip it, and why.
-        ``keeps_count``: the step makes as many pieces as it takes (a cut does not)."""
+        ``keeps_count``: the step makes as many pieces as it takes (a cut does not); ``at_goal``: the skill's
+        own distance within which its piece is at its goal (:attr:`pasta.core.Skill.at_goal`; ``None``: the
+        monitor's)."""
 
     @abstractmethod
     def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool) -> None:

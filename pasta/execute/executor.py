@@ -93,7 +93,8 @@ class ExecutionResult:
 
 def step_monitor(cfg: ExecuteConfig, perception: PerceptionConfig) -> Any:
     """The step monitor of an execution (:class:`pasta.tasks.step.GoalMonitor`) with ``cfg``'s settings; a
-    watched step whose piece is within ``perception.unchanged_threshold`` of its goal is at its goal."""
+    watched step whose piece is within ``perception.unchanged_threshold`` of its goal is at its goal, unless
+    its skill says how close is at its goal (:attr:`pasta.core.Skill.at_goal`)."""
     from pasta.tasks.step import GoalMonitor
 
     return GoalMonitor(rise=float(cfg.regress_rise), near=float(cfg.regress_near), overrun=int(cfg.overrun),
@@ -182,7 +183,7 @@ def execute_plan(
         controller = _controller(skill, cfg.controller)
         watch = bool(getattr(controller, "watch", False))
         ended = monitor.should_run(obs.dough[idx], goal_points, keeps_count=len(subgoal) == len(attended),
-                                   watch=watch) if len(idx) else None
+                                   watch=watch, at_goal=getattr(skill, "at_goal", None)) if len(idx) else None
         steps_run, attempts = 0, 0
         expected = int(labels.max()) + 1 - len(attended) + skill.spec.n_out  # pieces after a successful step
         while ended is None or attempts:  # skipped (at its goal), or run until done or out of retries

@@ -85,9 +85,10 @@ class GoalMonitor(StepMonitor):
     every env step by the Chamfer distance ``d`` between its piece and the step's goal (on at most
     ``points`` fixed points of each), and:
 
-    - is not started when its piece already lies within ``at_goal`` of the goal and the step makes as many
-      pieces as it takes (a plan that rolls a rolled piece once more; a cut is never skipped: to Chamfer a
-      dough and its two halves a few millimetres apart are close);
+    - is not started when its piece already lies within ``at_goal`` of the goal (or the skill's own
+      :attr:`~pasta.core.Skill.at_goal`) and the step makes as many pieces as it takes (a plan that rolls a
+      rolled piece once more; a cut is never skipped: to Chamfer a dough and its two halves a few millimetres
+      apart are close);
     - is stopped (:attr:`~pasta.core.Stop.REGRESSED`) once it has made real progress (its best distance
       below ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for
       ``patience`` env steps in a row: pushing cannot pull a piece back, so a push that overshoots only
@@ -131,9 +132,10 @@ class GoalMonitor(StepMonitor):
         return float(chamfer(self._subset(piece), self._subset(goal)))
 
     def should_run(self, piece: np.ndarray, goal: np.ndarray | None, *, keeps_count: bool,
-                   watch: bool) -> Stop | None:
-        if watch and keeps_count and goal is not None and len(piece) and self.at_goal > 0:
-            if self.distance(piece, goal) < self.at_goal:
+                   watch: bool, at_goal: float | None = None) -> Stop | None:
+        tolerance = self.at_goal if at_goal is None else float(at_goal)
+        if watch and keeps_count and goal is not None and len(piece) and tolerance > 0:
+            if self.distance(piece, goal) < tolerance:
                 return Stop.AT_GOAL
         return None
 

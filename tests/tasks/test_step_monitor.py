@@ -188,6 +188,20 @@ def test_should_run_skips_only_watched_steps_that_keep_the_count_and_are_at_thei
     assert GoalMonitor(at_goal=0.0).should_run(goal, goal, keeps_count=True, watch=True) is None  # 0: never
 
 
+def test_a_skill_says_how_close_is_at_its_goal():
+    from pasta.plugins import get_plugins
+
+    goal = np.zeros((10, 3), np.float32)
+    real = goal + np.float32([0.02, 0, 0])  # Chamfer 8e-4
+    monitor = GoalMonitor(at_goal=5e-4)
+    assert monitor.should_run(real, goal, keeps_count=True, watch=True, at_goal=None) is None  # the monitor's
+    assert monitor.should_run(real, goal, keeps_count=True, watch=True, at_goal=1e-3) is Stop.AT_GOAL
+    skills = get_plugins().skills
+    roll = skills.create("roll")
+    assert roll.at_goal == 1e-3  # a learned roll of a rolled piece spreads it again
+    assert skills.create("push").at_goal is None  # the others: perception.unchanged_threshold
+
+
 def test_retries_a_step_that_hit_the_limit_or_left_too_few_pieces():
     monitor = GoalMonitor()
     assert monitor.should_retry(2, 2, Stop.LIMIT) and monitor.should_retry(1, 2, Stop.DONE)

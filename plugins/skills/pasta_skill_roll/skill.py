@@ -138,6 +138,10 @@ class RollSkill(Skill):
 
     spec = SPEC
     keeps_position = True  # the heuristic rolls between the piece's ends, inside the goal's span
+    #: a learned roll of a piece already within 1e-3 (Chamfer) of its goal spreads it again: crs_twice's plans
+    #: that roll a rolled piece once more lost test configs 1002 and 1007 (0.873 -> 0.794, 0.907 -> 0.815) at
+    #: perception.unchanged_threshold's 5e-4 (docs/policies.md, "Executing a plan")
+    at_goal = 1e-3
     #: config fields only the heuristic controller reads (left out of task cache keys)
     heuristic_fields: tuple[str, ...] = ("thickness_tolerance", "springback", "min_elongation", "confine_to_goal",
                                          "end_tolerance", "goal_inset")
