@@ -34,7 +34,7 @@ TASKS = (
 ABLATIONS = (
     ("cut_rearrange", "PASTA, cut and push only", "cut_rearrange_pasta_skills-cut-push", "skills=cut,push", None),
     ("cut_rearrange", "no hard negatives (cut and push feasibility trained without them)",
-     "cut_rearrange_pasta_models-no_hard_negatives_skills-cut-push",
+     "cut_rearrange_pasta_models-no-hard-negatives_skills-cut-push",
      "skills=cut,push models=pasta/weights/ablations/no_hard_negatives", None),
     ("cut_rearrange", "no sampling (one initialisation per attention structure)",
      "cut_rearrange_pasta_attention-enumerate_num_samples-1_refine_sequences-0",

@@ -60,7 +60,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 #: run-config keys that do not change an episode's result, left out of the result file's name
-UNNAMED = ("task", "threads", "models", "device")
+UNNAMED = ("task", "threads", "device")
 
 
 def result_path(out: str | Path, cfg: Any, settings: list[str], split: str = "test") -> Path:
@@ -68,7 +68,8 @@ def result_path(out: str | Path, cfg: Any, settings: list[str], split: str = "te
 
     ``settings`` are the run-config items the user gave; each becomes a part of the name (``horizon=5`` ->
     ``_horizon5``, ``skills=cut,push`` -> ``_skills-cut-push``, ``task.distractors=4`` -> ``_distractors4``,
-    ``execute.controller=learned`` -> ``_learned``).
+    ``execute.controller=learned`` -> ``_learned``, ``models=runs/ablation/nohn`` -> ``_models-nohn``: the
+    weights root by its folder's name).
     """
     import re
 
@@ -83,6 +84,8 @@ def result_path(out: str | Path, cfg: Any, settings: list[str], split: str = "te
             parts.append(value.strip())
             continue
         leaf = key.split(".")[-1]
+        if key == "models":
+            value = Path(value.strip()).name
         value = re.sub(r"[^A-Za-z0-9.]+", "-", value.strip()).strip("-")
         parts.append(f"{leaf}{value}" if key.startswith("task.") or key == "horizon" else f"{leaf}-{value}")
     name += "".join(f"_{p}" for p in sorted(parts))

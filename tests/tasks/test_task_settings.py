@@ -68,6 +68,8 @@ def test_result_file_names_the_settings(tmp_path):
     assert name("execute.controller=learned", "task.distractors=1", split="val") == \
         "crs_distractors_pasta_distractors1_learned_val.jsonl"
     assert name("skills=cut,push,roll", "horizon=4", "threads=1") == "crs_distractors_pasta_horizon4_skills-cut-push-roll.jsonl"
+    # other weights give other results: the root is named by its folder
+    assert name("models=pasta/weights/ablations/no_hard_negatives") == "crs_distractors_pasta_models-no-hard-negatives.jsonl"
 
 
 def test_bad_settings_fail_before_any_work(tmp_path, capsys):
