@@ -88,7 +88,9 @@ def table(results: Path = RESULTS) -> str:
     lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs (seeds 1000-1019); "
               "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
               "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
-              "`execute.controller=learned`); its per-episode rows are in `docs/results/`."]
+              "`execute.controller=learned`); its per-episode rows are in `docs/results/`. Plan s: mean planning seconds "
+              "per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to four runs "
+              "shared (`benchmarks/bench_planner.py` times the planner alone)."]
     return "\n".join(lines) + "\n"
 
 
