@@ -96,7 +96,7 @@ def test_output_paths(tmp_path):
     assert check_output_dir(tmp_path, "out") == tmp_path
     with pytest.raises(ConfigError, match=r"^log=.*: is a directory; give a file path$"):
         check_output_file(tmp_path, "log")
-    with pytest.raises(ConfigError, match=r"^summary=.*taken/x.png: .*taken' is a file, so the path cannot be created$"):
+    with pytest.raises(ConfigError, match=r"^summary=.*: '.*taken' is a file, so the path cannot be created$"):
         check_output_file(a_file / "x.png", "summary")
     with pytest.raises(ConfigError, match=r"^out=.*taken: exists and is not a directory; give a directory path$"):
         check_output_dir(a_file, "out")

@@ -38,8 +38,11 @@ def test_prior_in_box(tiny_vae):
 def test_missing_weights_name_the_training_command(tmp_path):
     with pytest.raises(MissingComponentError, match="pasta train vae"):
         PointVAEEncoder(PointVAEEncoderConfig(weights=str(tmp_path / "nothing")))
+    from pasta.nn.config import FlatEncoderConfig
+
     with pytest.raises(MissingComponentError, match="flat=true"):
-        get_plugins().encoders.create("flat")  # default path models/flat_vae does not exist in the test cwd
+        get_plugins().encoders.create("flat", FlatEncoderConfig(weights=str(tmp_path / "nothing")))
+    assert get_plugins().encoders.create("flat").scope == "scene"  # the shipped Flat 3D VAE (pasta/weights/flat)
 
 
 def test_flat_encoder_refuses_entity_weights(vae_dir):
