@@ -14,7 +14,7 @@ HELP = ("train the VAE, a skill's feasibility, the cost model, a skill's policy 
 
 EPILOG = """examples:
   pasta train vae data=demos out=models                  # writes models/vae
-  pasta train vae data=demos out=models flat=true        # whole-scene VAE, models/flat_vae
+  pasta train vae data=demos out=models/flat flat=true   # whole-scene VAE (Flat 3D), models/flat/vae
   pasta train feasibility data=demos out=models skill=cut  # models/feasibility/cut (uses models/vae)
   pasta train cost data=demos out=models epochs=80       # models/cost
   pasta train policy data=demos out=models skill=cut     # models/policy/cut (behaviour cloning)

@@ -12,21 +12,20 @@ Importing this package is cheap; torch is imported by the submodules:
 Models directory layout (written by ``pasta train``)::
 
     ROOT/vae/                 model.safetensors + model.json (+ metrics.json, last.*)
-    ROOT/flat_vae/            the whole-scene VAE of the Flat 3D baseline
     ROOT/feasibility/<skill>/ one set feasibility network per skill
     ROOT/cost/                the pairwise cost network
 
-The Flat 3D baseline has a models root of its own with the same sub-directories (default
-``models/flat``; see :mod:`pasta.nn.flat`, loaded by :func:`pasta.nn.flat.load_flat`)::
+The Flat 3D baseline has a models root of its own with the same sub-directories (``ROOT/flat`` of a
+models root: the shipped ones are ``pasta/weights/flat``; see :mod:`pasta.nn.flat`, loaded by
+:func:`pasta.nn.flat.load_flat`)::
 
-    FLAT/vae/                 whole-scene VAE  (pasta train vae data=DIR out=FLAT flat=true subdir=vae)
+    FLAT/vae/                 whole-scene VAE  (pasta train vae data=DIR out=FLAT flat=true)
     FLAT/feasibility/<skill>/ 1 -> 1 scene feasibility (pasta train feasibility ... out=FLAT flat=true skill=S)
     FLAT/cost/                cost of scene pairs (pasta train cost ... out=FLAT flat=true)
 """
 
 #: sub-directory of a models root holding each trained module
 VAE_DIR = "vae"
-FLAT_VAE_DIR = "flat_vae"
 FEASIBILITY_DIR = "feasibility"
 COST_DIR = "cost"
 #: default models root of the Flat 3D baseline (same sub-directories as an entity root)

@@ -9,7 +9,7 @@ whole cloud is one entity".
 Models root (default :data:`pasta.nn.FLAT_ROOT`, ``models/flat``), the same sub-directories as an
 entity root, trained with ``out=ROOT flat=true``::
 
-    ROOT/vae/                 pasta train vae         data=DIR out=ROOT flat=true subdir=vae
+    ROOT/vae/                 pasta train vae         data=DIR out=ROOT flat=true
     ROOT/feasibility/<skill>/ pasta train feasibility data=DIR out=ROOT flat=true skill=<skill>
     ROOT/cost/                pasta train cost        data=DIR out=ROOT flat=true
 
@@ -34,7 +34,7 @@ __all__ = ["FlatSkill", "flat_hint", "flat_skill", "flat_skills", "load_flat", "
 
 def flat_hint(module: str, root: str | Path = FLAT_ROOT, skill: str = "NAME") -> str:
     """The command that trains the Flat 3D ``module`` (``vae``, ``feasibility`` or ``cost``) into ``root``."""
-    extra = {"vae": " subdir=vae", "feasibility": f" skill={skill}", "cost": ""}[module]
+    extra = {"vae": "", "feasibility": f" skill={skill}", "cost": ""}[module]
     return f"`pasta train {module} data=DIR out={root} flat=true{extra}`"
 
 

@@ -74,7 +74,7 @@ class PointVAE(nn.Module):
 MODULE = "vae"
 TRAIN_HINT = {
     "entity": "train one with `pasta train vae data=DIR out=models` (writes models/vae)",
-    "scene": "train one with `pasta train vae data=DIR out=models flat=true` (writes models/flat_vae)",
+    "scene": "train one with `pasta train vae data=DIR out=models/flat flat=true` (writes models/flat/vae)",
 }
 
 

@@ -334,7 +334,7 @@ STAGES: tuple[Stage, ...] = (
                reserved={"skill": "skills=", "out": "data="}),
     Stage("vae", per_skill=False, command="pasta train vae", build=_build_module("vae"), run=_run_module("vae"),
           directory=_under_out(VAE_DIR, False), figure="heldout_chamfer_mean",
-          defaults={"epochs": 11, "stride": 5, **ONE_THREAD}, reserved={"flat": _FLAT, "subdir": _FLAT}),
+          defaults={"epochs": 11, "stride": 5, **ONE_THREAD}, reserved={"flat": _FLAT}),
     Stage("feasibility", per_skill=True, command="pasta train feasibility", build=_build_module("feasibility"),
           run=_run_module("feasibility"), directory=_under_out(FEASIBILITY_DIR, True), figure="heldout_auc_hard",
           defaults=ONE_THREAD, reserved={"skill": "skills=", "flat": _FLAT}, uses_vae=True),

@@ -4,8 +4,8 @@
 directory under the models root ``out`` (see :mod:`pasta.nn`) and leaves ``metrics.json`` there.
 
 Flat 3D baseline (``flat=true``, layout in :mod:`pasta.nn.flat`): a models root of its own, e.g.
-``out=models/flat``, with the same sub-directories (``vae`` via ``subdir=vae``, ``feasibility/<skill>``,
-``cost``); its feasibility and cost read the scene VAE ``OUT/vae``.
+``out=models/flat``, with the same sub-directories (``vae``, ``feasibility/<skill>``, ``cost``); its
+feasibility and cost read the scene VAE ``OUT/vae``.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from typing import Any
 
 from pasta.config.overrides import build_many
 from pasta.core.errors import ConfigError, did_you_mean
-from pasta.nn import COST_DIR, FEASIBILITY_DIR, FLAT_VAE_DIR, VAE_DIR
+from pasta.nn import COST_DIR, FEASIBILITY_DIR, VAE_DIR
 from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
 from pasta.demos.data import load_demos, split_by_demo
 from pasta.train.feasibility import FeasibilityTask, FeasibilityTrainConfig, positive_tuples
@@ -73,7 +73,7 @@ def _finish(directory: Path, module: str, result: Any, figures: dict[str, Any], 
 
 
 def _train_vae(data: Path, out: Path, loop: LoopConfig, cfg: VAETrainConfig) -> dict[str, Any]:
-    directory = out / (cfg.subdir or (FLAT_VAE_DIR if cfg.flat else VAE_DIR))
+    directory = out / VAE_DIR
     train, val = _split(data, cfg, loop, "vae")
     task = VAETask(collect_clouds(train, cfg, seed=loop.seed), collect_clouds(val, cfg, seed=loop.seed), cfg, seed=loop.seed)
     result = fit(task, loop, directory)

@@ -35,8 +35,6 @@ class VAETrainConfig:
         num_points: points per entity after decomposition.
         stride: use every ``stride``-th demonstration step.
         flat: train on whole scenes (Flat 3D baseline) instead of entities.
-        subdir: sub-directory of ``OUT`` the weights go to; empty: ``vae``, or ``flat_vae`` with
-            ``flat=true``. A Flat 3D models root (:mod:`pasta.nn.flat`) uses ``flat=true subdir=vae``.
         val_fraction: share of demonstrations held out (per skill).
         max_val: validation examples evaluated each epoch (the final figures use all).
     """
@@ -54,7 +52,6 @@ class VAETrainConfig:
     flat: bool = False
     val_fraction: float = 0.2
     max_val: int = 256
-    subdir: str = ""
 
 
 def collect_clouds(demos: list[Demo], cfg: VAETrainConfig, *, seed: int = 0) -> np.ndarray:
@@ -137,10 +134,8 @@ class VAETask:
 
 
 def _train_dict(cfg: VAETrainConfig) -> dict[str, Any]:
-    """The settings saved with the weights; ``subdir`` says where, not how, so it is left out."""
-    d = asdict(cfg)
-    d.pop("subdir")
-    return d
+    """The settings saved with the weights."""
+    return asdict(cfg)
 
 
 def chamfer_loss(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:

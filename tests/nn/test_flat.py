@@ -90,7 +90,7 @@ def flat_root(tmp_path_factory):
         np.savez_compressed(path, **arrays, final_dough=arrays["dough"][-1] + np.float32(0.001))
     root = tmp_path_factory.mktemp("models") / "flat"
     figures = {
-        "vae": train("vae", data, root, {**TINY["vae"], "flat": "true", "subdir": "vae"}),
+        "vae": train("vae", data, root, {**TINY["vae"], "flat": "true"}),
         "feasibility": train("feasibility", data, root, {**TINY["feasibility"], "flat": "true", "skill": "cut"}),
         "cost": train("cost", data, root, {**TINY["cost"], "flat": "true"}),
     }
@@ -136,7 +136,7 @@ def test_missing_flat_weights_name_the_command(flat_root, tmp_path):
     push = get_plugins().skills.create("push")
     with pytest.raises(MissingComponentError, match=r"pasta train feasibility data=DIR out=\S+ flat=true skill=push"):
         load_flat(root, [push])
-    with pytest.raises(MissingComponentError, match=r"pasta train vae data=DIR out=\S+ flat=true subdir=vae"):
+    with pytest.raises(MissingComponentError, match=r"pasta train vae data=DIR out=\S+ flat=true`"):
         load_flat(tmp_path / "nothing", [push])
     (tmp_path / "partial").mkdir()
     (tmp_path / "partial" / "vae").symlink_to(root / "vae")

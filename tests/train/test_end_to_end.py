@@ -80,7 +80,7 @@ def test_flat_vae_for_the_flat_baseline(three_demos, tmp_path, tiny):
 
     figures = train("vae", three_demos, tmp_path, {**tiny["vae"], "epochs": "1", "flat": "true"})
     assert figures["heldout_examples"] == 3  # one held-out demo, states 0, 2 and 4
-    encoder = get_plugins().encoders.create("flat", FlatEncoderConfig(weights=str(tmp_path / "flat_vae")))
+    encoder = get_plugins().encoders.create("flat", FlatEncoderConfig(weights=str(tmp_path / "vae")))
     check_encoder(encoder)
     dough = np.load(three_demos / "cut" / "demo_00000.npz", allow_pickle=False)["dough"]
     assert encoder.encode_scene(dough[-1]).shape == (1, 5)
