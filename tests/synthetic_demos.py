@@ -150,3 +150,15 @@ def write_synthetic_dataset(
     }
     (root / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
     return root
+
+
+def write_knife_dataset(out_dir: str | Path) -> Path:
+    """3 synthetic cut demonstrations (4 steps, 400 points) whose actions have the knife's size (dx, dy), so a
+    policy trained on them can drive the real cut skill."""
+    root = write_synthetic_dataset(out_dir, per_skill=3, skills=("cut",), steps=4, num_points=400)
+    for path in sorted((root / "cut").glob("demo_*.npz")):
+        with np.load(path) as f:
+            arrays = {k: f[k] for k in f.files}
+        arrays["action"] = np.ascontiguousarray(arrays["action"][:, :2])
+        np.savez_compressed(path, **arrays)
+    return root

@@ -3,26 +3,16 @@ policies, as resumable units (tiny sizes; the select unit runs the real simulato
 
 import json
 
-import numpy as np
 import pytest
 
 from pasta.core.errors import ConfigError
 from pasta.pipeline import PipelineConfig, parse_arguments, plan, run_pipeline
-from synthetic_demos import write_synthetic_dataset
+from synthetic_demos import write_knife_dataset
 
 
 @pytest.fixture(scope="module")
 def knife_demos(tmp_path_factory):
-    """3 synthetic cut demonstrations (4 steps, 400 points) with the knife's action size (dx, dy), so the
-    trained policy can drive the real cut skill."""
-    root = write_synthetic_dataset(tmp_path_factory.mktemp("knife_demos"), per_skill=3, skills=("cut",), steps=4,
-                                   num_points=400)
-    for path in sorted((root / "cut").glob("demo_*.npz")):
-        with np.load(path) as f:
-            arrays = {k: f[k] for k in f.files}
-        arrays["action"] = np.ascontiguousarray(arrays["action"][:, :2])
-        np.savez_compressed(path, **arrays)
-    return root
+    return write_knife_dataset(tmp_path_factory.mktemp("knife_demos"))
 
 TINY_POLICY = {"epochs": "1", "steps_per_epoch": "2", "val_batches": "1", "batch_size": "4", "dough_points": "32",
                "tool_points": "8", "goal_points": "32"}

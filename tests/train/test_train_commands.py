@@ -2,19 +2,7 @@
 
 import json
 
-import numpy as np
-
 from pasta.cli import main
-
-
-def _knife_demos(root):
-    """The 3 synthetic cut demonstrations of the ``three_demos`` fixture, with the knife's action size (dx, dy)."""
-    for path in sorted((root / "cut").glob("demo_*.npz")):
-        with np.load(path) as f:
-            arrays = {k: f[k] for k in f.files}
-        arrays["action"] = np.ascontiguousarray(arrays["action"][:, :2])
-        np.savez_compressed(path, **arrays)
-    return root
 
 
 def test_missing_and_misspelt_keys_fail_before_any_work(tmp_path, capsys):
@@ -34,10 +22,9 @@ def test_missing_and_misspelt_keys_fail_before_any_work(tmp_path, capsys):
 
 
 def test_train_reset_writes_beside_the_policy_of_the_models_root(tmp_path_factory, capsys):
-    from synthetic_demos import write_synthetic_dataset
+    from synthetic_demos import write_knife_dataset
 
-    data = _knife_demos(write_synthetic_dataset(tmp_path_factory.mktemp("demos"), per_skill=3, skills=("cut",),
-                                                steps=4, num_points=400))
+    data = write_knife_dataset(tmp_path_factory.mktemp("demos"))
     out = tmp_path_factory.mktemp("models")
     args = ["train", "reset", f"data={data}", f"out={out}", "skill=cut", "epochs=2", "batch_size=2", "points=32",
             "progress=false", "threads=1"]
