@@ -46,6 +46,13 @@ class MissingComponentError(PastaError, NotImplementedError):
     """A component a call needs is not available yet (untrained network, unimplemented hook)."""
 
 
+class UnreachableGoalError(PastaError, ValueError):
+    """The goal cannot be reached by any plan (e.g. it holds far more or far less dough than the observation);
+    the command line exits with code 3, as for a plan flagged unreachable."""
+
+    exit_code = 3
+
+
 class CardinalityError(PastaError, ValueError):
     """No skill sequence within the horizon turns the observed entity count into the goal's."""
 

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from pasta.config.run import CheckConfig, ExecuteConfig, PerceptionConfig
-from pasta.core.errors import InputError, PastaError, PluginRuntimeError
+from pasta.core.errors import InputError, PastaError, PluginRuntimeError, UnreachableGoalError
 from pasta.core.plan import Plan
 from pasta.execute.executor import ExecutionResult, execute_plan
 
@@ -82,6 +82,27 @@ def perceive(points: np.ndarray, encoder: Any, perception: PerceptionConfig | No
     return entities, labels, pts, latents
 
 
+def check_volumes(clouds: dict[str, np.ndarray], labels: dict[str, np.ndarray] | None, check: CheckConfig,
+                  perception: PerceptionConfig) -> dict[str, float]:
+    """The dough volume (m^3) of the ``obs`` and ``goal`` clouds, each the summed convex hulls of its pieces
+    (``labels``, or decomposed here for a whole-scene encoder); raises :class:`UnreachableGoalError` when the
+    goal's is outside ``[1 / check.volume_ratio, check.volume_ratio]`` times the observation's."""
+    from pasta.core.decompose import decompose_labels
+    from pasta.perception.volume import piece_volumes, volume_ratio
+
+    volume = {}
+    for name in ("obs", "goal"):
+        lab = labels[name] if labels is not None else decompose_labels(clouds[name], **perception.decompose_kwargs())
+        volume[name] = float(piece_volumes(clouds[name], lab).sum())
+    ratio, limit = volume_ratio(volume["goal"], volume["obs"]), float(check.volume_ratio)
+    if not 1.0 / limit <= ratio <= limit:
+        raise UnreachableGoalError(
+            f"the goal holds {ratio:.3g} times the observed dough ({1e6 * volume['goal']:.1f} cm^3 against "
+            f"{1e6 * volume['obs']:.1f} cm^3, summed convex hulls of the pieces), outside 1/{limit:g} to {limit:g} "
+            f"(check.volume_ratio): skills move and shape dough, they neither add nor remove it")
+    return volume
+
+
 def perceive_and_plan(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills: Sequence[Any], encoder: Any,
                       cost: Any, horizon: int, seed: int = 0, skeleton: Sequence[str] | None = None,
                       perception: PerceptionConfig | None = None, check: CheckConfig | None = None,
@@ -94,6 +115,8 @@ def perceive_and_plan(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills
     Raises:
         InputError: an entity outside the models' training boxes (more than ``check.box_margin``), latents
             that are not finite, or a plan that fails :meth:`pasta.core.Plan.check`.
+        UnreachableGoalError: the goal holds more than ``check.volume_ratio`` times the observation's dough,
+            or less than its inverse (:func:`check_volumes`).
         PluginRuntimeError: the planner raised, or returned something other than a ``Plan``; the message
             names the planner and its distribution.
     """
@@ -114,6 +137,7 @@ def perceive_and_plan(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills
         latents[name] = check_latents(u, f"the {len(entities[name])} encoded {name} entities{who}", dim=encoder.latent_dim)
         if not scene:
             box_flags += check_training_box(latents[name], encoder, name, check.box_margin, boxes=boxes)
+    check_volumes(clouds, None if scene else labels, check, perception)  # before planning: no plan reaches it
     fixed = () if scene else unchanged_pairs(np.stack(entities["obs"]), np.stack(entities["goal"]),
                                              threshold=perception.unchanged_threshold)
     problem = PlanningProblem(obs=latents["obs"], goal=latents["goal"], skills=list(skills), encoder=encoder,
