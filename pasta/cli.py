@@ -13,6 +13,7 @@ from collections.abc import Sequence
 
 import pasta.commands
 from pasta.core.errors import PastaError
+from pasta.core.files import OutputLock
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,6 +39,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except PastaError as exc:  # a usage error (exit 2), or a plugin that failed at work (its exit_code, 1)
             print(f"pasta {args.command}: error: {exc}", file=sys.stderr)
             return int(getattr(exc, "exit_code", 2))
+        finally:
+            OutputLock.release_all()  # the outputs this command claimed (pasta.core.files)
 
 
 def _plugin_warnings_as_lines() -> None:

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from pasta.core.errors import ConfigError
+from pasta.core.files import OutputLock, append_text, refuse_link, write_json
 
 HELP = "evaluate a method on a task's fixed test set (task=T [method=pasta|flat|oracle] num=20 [key=value ...])"
 
@@ -168,6 +169,8 @@ def run(args: argparse.Namespace) -> int:
     print_skill_warning(session)
     path = result_path(opts.out, session.cfg, rest, opts.split)
     check_output_file(path, "out")  # e.g. a directory of the result file's name in out=
+    refuse_link(path, "out")  # the result file is appended to: a link there would be followed
+    OutputLock(path, "out").acquire()  # one writer per result file (held until this process ends)
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
     if opts.resume and path.exists():
@@ -208,8 +211,7 @@ def run(args: argparse.Namespace) -> int:
                 print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: refused, {row['refused']}",
                       file=sys.stderr, flush=True)
                 continue
-            with path.open("a") as f:  # one line per finished episode, by this process only: nothing is lost on interruption
-                f.write(json.dumps(row) + "\n")
+            append_text(path, json.dumps(row) + "\n")  # one line per finished episode: nothing is lost on interruption
             done[seed] = row
             skel = "-".join(row.get("skeleton", [])) or "ground truth"
             print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: {skel:<24} improvement {row['improvement']:+.3f} "
@@ -231,7 +233,7 @@ def run(args: argparse.Namespace) -> int:
     rows = [done[s] for s in seeds]
     summary = {**session.describe(), "split": opts.split, "seeds": [seeds[0], seeds[-1]], **summarise(rows),
                "provenance": machine}
-    path.with_suffix(".json").write_text(json.dumps(summary, indent=2) + "\n")
+    write_json(path.with_suffix(".json"), summary)
     print(f"{session.task.name} / {session.method}: normalised improvement {summary['improvement_mean']:.3f} +/- "
           f"{summary['improvement_std']:.3f}, success {100 * summary['success_rate']:.0f}% over {len(rows)} configs "
           f"(planning {summary['plan_s_mean']:.1f} s, execution {summary['execute_s_mean']:.1f} s per episode)")

@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 from pasta.core.errors import ConfigError, InputError
+from pasta.core.files import OutputLock
 
 HELP = ("plan from an observed and a goal point cloud (.npy or .ply): obs=FILE goal=FILE [out=DIR] [units=m|mm] "
         "[up=y|z] [transform=FILE] [preprocess=none|camera] [key=value ...]")
@@ -119,6 +120,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     mine, overrides = split_arguments(list(items))
     camera = camera_options(mine)
     out = check_output_dir(mine["out"], "out")  # before anything is computed: a bad out= must not cost a plan
+    OutputLock(out, "out").acquire()  # one writer per out=: a second plan stops here
     if plugins is None:
         from pasta.plugins import get_plugins
 
@@ -334,22 +336,24 @@ def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, i
     """Write the sub-goal clouds (workspace frame ``step_{h}_subgoal.npy``; in the input's frame and units
     ``step_{h}_subgoal_input.npy`` when that differs), the per-point labels ``{obs,goal}_labels.npy``,
     ``entities.json`` and, last, ``plan.json`` (via a temporary name, so a ``plan.json`` present is a
-    complete one); return the workspace sub-goal file names."""
+    complete one); every file is written whole, never through a link (:mod:`pasta.core.files`); return the
+    workspace sub-goal file names."""
     import json
-    import os
 
     import numpy as np
+
+    from pasta.core.files import save_with, write_text
 
     out.mkdir(parents=True, exist_ok=True)
     (out / "plan.json").unlink(missing_ok=True)  # never leave an older plan beside these sub-goals
     files, inputs = [], []
     for h, clouds in enumerate(subgoals):
         path = out / f"step_{h}_subgoal.npy"
-        np.save(path, clouds)
+        save_with(path, lambda fh: np.save(fh, clouds))
         files.append(path.name)
         if frame is not None and not frame.identity:
             path = out / f"step_{h}_subgoal_input.npy"
-            np.save(path, frame.from_workspace(clouds).astype(np.float32))
+            save_with(path, lambda fh: np.save(fh, frame.from_workspace(clouds).astype(np.float32)))
             inputs.append(path.name)
         else:
             (out / f"step_{h}_subgoal_input.npy").unlink(missing_ok=True)
@@ -357,10 +361,8 @@ def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, i
     if inputs:
         extra["subgoals_input_frame"] = inputs
     for name, lab in (labels or {}).items():
-        np.save(out / f"{name}_labels.npy", lab)
+        save_with(out / f"{name}_labels.npy", lambda fh: np.save(fh, lab))
         extra[f"{name}_labels"] = f"{name}_labels.npy"
-    (out / "entities.json").write_text(json.dumps({**counts, **extra}, indent=2))
-    tmp = out / "plan.json.tmp"
-    tmp.write_text(plan_json)
-    os.replace(tmp, out / "plan.json")
+    write_text(out / "entities.json", json.dumps({**counts, **extra}, indent=2))
+    write_text(out / "plan.json", plan_json)
     return files

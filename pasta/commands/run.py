@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from pasta.core.errors import ConfigError
+from pasta.core.files import OutputLock
 
 HELP = "plan and execute one task instance in the simulator and score it (task=crs seed=S [key=value ...])"
 
@@ -86,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
     for key in ("log", "summary"):  # before anything is computed: a finished episode is never lost to a bad path
         if getattr(opts, key):
             check_output_file(getattr(opts, key), key)
+            OutputLock(getattr(opts, key), key).acquire()  # one writer per file: a second run stops here
     from pasta.config import load_config
 
     load_config(rest)  # every key and value is checked before a model is loaded or a simulator starts

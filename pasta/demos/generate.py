@@ -41,6 +41,7 @@ from typing import Any
 import numpy as np
 
 from pasta.core.errors import ConfigError
+from pasta.core.files import OutputLock, write_json
 from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
 from pasta.distributed import BackendConfig, BackendError
 from pasta.demos.scene import (DEFAULT, check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles,
@@ -148,9 +149,7 @@ def write_manifest(cfg: DemoConfig) -> Path:
         "updated": time.strftime("%Y-%m-%dT%H:%M:%S"),
     }
     manifest["counts"] = {k: v["count"] for k, v in skills.items()}
-    tmp = path.with_name(f".manifest.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
-    os.replace(tmp, path)
+    write_json(path, manifest, indent=1, sort_keys=True)
     return path
 
 
@@ -236,8 +235,12 @@ def _scene_record(boxes: list[tuple]) -> dict[str, Any]:
 
 
 def pending(cfg: DemoConfig) -> list[int]:
-    """Indices in ``[0, num)`` whose file does not exist yet."""
-    return [i for i in range(cfg.num) if not demo_path(cfg.out, cfg.skill, i).exists()]
+    """Indices in ``[0, num)`` whose file does not exist yet (a symbolic link is not a demo: it is replaced)."""
+    return [i for i in range(cfg.num) if not _is_regular(demo_path(cfg.out, cfg.skill, i))]
+
+
+def _is_regular(path: Path) -> bool:
+    return path.is_file() and not path.is_symlink()
 
 
 def failure_report(cfg: DemoConfig, failures: dict[int, str]) -> str:
@@ -278,11 +281,15 @@ def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int 
     Raises :class:`ConfigError` on bad arguments before any work, :class:`DemoWorkerError` naming the
     demos (with their seeds) that could not be made, after the others are written.
     """
+    backend = backend or BackendConfig()
+    with OutputLock(validate(cfg), "out"):  # one process writes a skill's demo folder at a time
+        return _generate(cfg, backend, progress=progress, max_attempts=max_attempts)
+
+
+def _generate(cfg: DemoConfig, backend: BackendConfig, *, progress: bool, max_attempts: int) -> dict[str, Any]:
     from pasta.distributed import map_jobs
     from pasta.tasks.npz import write_npz
 
-    backend = backend or BackendConfig()
-    validate(cfg)
     todo = pending(cfg)
     skipped = cfg.num - len(todo)
     write_manifest(cfg)

@@ -19,6 +19,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from pasta.core.errors import InputError
+from pasta.core.files import save_with
 from pasta.core.shapes import check_points
 
 __all__ = ["save_summary"]
@@ -101,10 +102,7 @@ def save_summary(
     if title:
         fig.suptitle(title, fontsize=12)
 
-    out = pathlib.Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out, dpi=dpi, format="png")
-    return out
+    return save_with(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
 
 
 def _cloud(points: Any, name: str) -> Cloud:

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from pasta.core.errors import ConfigError, MissingComponentError
+from pasta.core.files import write_bytes, write_text
 
 if TYPE_CHECKING:
     import torch
@@ -83,19 +84,15 @@ def save_checkpoint(
         config: JSON-serialisable description needed to rebuild the module.
         state: JSON-serialisable training state.
     """
-    from safetensors.torch import save_file
+    from safetensors.torch import save
 
     weights, header = _paths(directory, name)
-    weights.parent.mkdir(parents=True, exist_ok=True)
     flat = {k: v.detach().to("cpu").contiguous() for k, v in tensors.items()}
     doc = {"format_version": FORMAT_VERSION, "module": module, "config": dict(config), "state": dict(state or {})}
     text = json.dumps(doc, indent=2, sort_keys=True)
-    # Write both to temporaries first so an interrupted save never leaves a half-written checkpoint.
-    tmp_w, tmp_h = weights.with_suffix(".safetensors.tmp"), header.with_suffix(".json.tmp")
-    save_file(flat, str(tmp_w), metadata={"module": module, "format_version": str(FORMAT_VERSION)})
-    tmp_h.write_text(text + "\n")
-    os.replace(tmp_w, weights)
-    os.replace(tmp_h, header)
+    # each file is written whole (an interrupted save never leaves a half-written one) and never through a link
+    write_bytes(weights, save(flat, metadata={"module": module, "format_version": str(FORMAT_VERSION)}))
+    write_text(header, text + "\n")
     return weights
 
 

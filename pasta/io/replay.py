@@ -20,6 +20,7 @@ from typing import Any, Callable, TextIO
 import numpy as np
 
 from pasta.core.errors import ConfigError, PastaError, did_you_mean
+from pasta.core.files import save_with
 from pasta.io.errors import McapFormatError, McapTruncatedError
 from pasta.io.run_log import ACTIONS, DOUGH, FINAL_STATE, INITIAL_STATE, METRICS, PLAN, SIM_CONFIG, STEP, TOOLS
 from pasta.io.run_reader import RunReader
@@ -303,13 +304,14 @@ def export_frames(
                 ax.set_aspect("equal", adjustable="box")
             fig.tight_layout()
             png = out_dir / f"{_slug(topic)}_{k:05d}.png"
-            fig.savefig(png)
+            save_with(png, lambda fh: fig.savefig(fh, format="png"))
             pngs.append(png)
         plt.close(fig)
         images = [Image.open(p).convert("RGB") for p in pngs]
         gif = out_dir / f"{_slug(topic)}.gif"
         duration = max(int(round(1000.0 / max(fps, 0.1))), 20)
-        images[0].save(gif, save_all=True, append_images=images[1:], duration=duration, loop=0)
+        save_with(gif, lambda fh: images[0].save(fh, format="gif", save_all=True, append_images=images[1:],
+                                                 duration=duration, loop=0))
         written += pngs + [gif]
     return written
 

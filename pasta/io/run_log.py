@@ -5,7 +5,9 @@ Every message is stamped with simulation time the caller passes (integer ns, e.g
 gives byte-identical files. Chunks are zstd-compressed with chunk, data-section and summary CRCs.
 
 Crash safety: the file is written as ``FILE.partial`` next to ``FILE`` and renamed to ``FILE`` when it is
-closed, so an existing ``FILE`` is only replaced by a finished run. Closing records the run's status in
+closed, so an existing ``FILE`` is only replaced by a finished run; one process writes a ``FILE`` at a
+time (:class:`pasta.core.files.OutputLock`: a second one gets :class:`~pasta.core.files.OutputBusyError`
+before it writes anything), and a symbolic link at ``FILE`` or ``FILE.partial`` is replaced, not followed. Closing records the run's status in
 the metadata record ``status`` (``complete``, or ``failed`` with the error, also logged as an error line
 on ``/log``); a killed run leaves ``FILE.partial``, readable with ``RunReader(path, recover=True)`` /
 ``pasta replay FILE.partial --recover``.
@@ -26,6 +28,7 @@ from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 
+from pasta.core.files import OutputLock
 from pasta.io import schemas as S
 from pasta.io.schemas import ToolPrimitive, _check_time
 
@@ -58,6 +61,17 @@ def partial_path(path: str | os.PathLike[str]) -> Path:
     """Where :class:`RunLogger` writes ``path`` until it is closed: ``path`` + ``.partial``."""
     path = Path(path)
     return path.with_name(path.name + PARTIAL_SUFFIX)
+
+
+def _create(path: Path) -> Any:
+    """A new, empty file at ``path``, opened for binary writing. What is there is ours to replace (the caller
+    holds the log's lock): a stale ``.partial`` of a killed run, or a link, which is removed, never followed."""
+    try:
+        os.unlink(path)
+    except FileNotFoundError:
+        pass
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o644)
+    return os.fdopen(fd, "wb")
 
 
 def _error_text(error: BaseException | str) -> str:
@@ -114,7 +128,12 @@ class RunLogger:
             raise IsADirectoryError(errno.EISDIR, "run log target is a directory", str(self.path))
         self.partial_path = partial_path(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self._stream = open(self.partial_path, "wb")
+        self._lock = OutputLock(self.path, "log").acquire()  # one writer per log (OutputBusyError otherwise)
+        try:
+            self._stream = _create(self.partial_path)
+        except BaseException:
+            self._lock.release()
+            raise
         self._last_t = 0  # latest message time: where a failure is logged
         try:
             self._writer = Writer(
@@ -127,6 +146,7 @@ class RunLogger:
             self._writer.start(profile="", library=LIBRARY)
         except BaseException:
             self._stream.close()
+            self._lock.release()
             raise
         self._schemas: dict[tuple[str, str], int] = {}  # (name, encoding) -> schema id
         self._channels: dict[str, tuple[int, str]] = {}  # topic -> (channel id, schema name)
@@ -177,7 +197,10 @@ class RunLogger:
             os.fsync(self._stream.fileno())  # the data is on disk before the name says it is complete
         finally:
             self._stream.close()
-        os.replace(self.partial_path, self.path)
+        try:
+            os.replace(self.partial_path, self.path)  # a link at ``path`` is replaced, never written through
+        finally:
+            self._lock.release()
 
     def fail(self, error: BaseException | str) -> None:
         """Close the file recording that the run failed with ``error`` (see :meth:`close`)."""

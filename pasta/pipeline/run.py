@@ -48,7 +48,6 @@ Every unit's configuration is built up front with the trainers' own config build
 from __future__ import annotations
 
 import json
-import os
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -57,6 +56,7 @@ from pathlib import Path
 from typing import Any
 
 from pasta.core.errors import ConfigError, did_you_mean
+from pasta.core.files import OutputLock, write_json
 from pasta.pipeline.stages import STAGES, Stage, skill_class, stage
 
 __all__ = ["PipelineConfig", "Unit", "UnitResult", "parse_arguments", "plan", "run_pipeline", "settings",
@@ -349,10 +349,7 @@ def _write_record(out: Path, name: str, entry: dict[str, Any]) -> None:
     out.mkdir(parents=True, exist_ok=True)
     units = _read_records(out)
     units[name] = entry
-    path = out / RECORD
-    tmp = path.with_name(f".{RECORD}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps({"format": FORMAT, "units": units}, indent=1, sort_keys=True) + "\n")
-    os.replace(tmp, path)
+    write_json(out / RECORD, {"format": FORMAT, "units": units}, indent=1, sort_keys=True)
 
 
 def _now() -> str:
@@ -378,6 +375,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
     units = plan(cfg, overrides)
     _check_inputs(cfg, units)
     out = Path(cfg.out)
+    lock = OutputLock(out, "out").acquire()  # one pipeline per models root
     results: list[UnitResult] = []
     n = len(units)
     say(f"pasta pipeline: {n} unit(s): {', '.join(u.name for u in units)}; data={cfg.data} out={cfg.out}"
@@ -418,6 +416,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
             say(f"{tag} done in {wall:.1f} s: {figure}")
             results.append(UnitResult(unit.name, "ran", wall, figure, dict(metrics)))
     finally:
+        lock.release()
         if results:
             say(summary_table(results))
     return results

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pasta.core.files import save_with
+
 #: tools without a ToolSpec.color take these in turn
 _PALETTE = ("tab:red", "tab:green", "tab:purple", "tab:blue", "tab:brown", "tab:pink", "tab:olive", "tab:cyan")
 
@@ -62,8 +64,6 @@ def render_png(path, dough_points, tool_points=None, goal_points=None, title: st
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    path = save_with(path, lambda fh: fig.savefig(fh, dpi=110, format="png"))
     plt.close(fig)
     return path

@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import ClassVar, Sequence
+from typing import IO, ClassVar, Sequence
 
 import numpy as np
 
 from pasta.core.errors import ConfigError, InputError, SimulationError
+from pasta.core.files import save_with
 from pasta.core.tool import ToolSpec
 
 from .config import RUNTIME_PARAMS, SimConfig, check_params
@@ -63,10 +65,14 @@ class SimState:
     def copy(self) -> SimState:
         return SimState(*(getattr(self, k).copy() for k in self._fields), step=self.step, tool_names=tuple(self.tool_names))
 
-    def save(self, path: str | Path) -> None:
-        """Write an .npz (no pickle)."""
+    def save(self, path: str | Path | IO[bytes]) -> None:
+        """Write an .npz (no pickle) to a file object, or whole to a path (:func:`pasta.core.files.save_with`)."""
         arrays = {k: np.asarray(getattr(self, k)) for k in self._fields}
-        np.savez(path, step=np.int64(self.step), tool_names=np.array(list(self.tool_names), dtype=str), **arrays)
+        names = np.array(list(self.tool_names), dtype=str)
+        if isinstance(path, (str, os.PathLike)):
+            save_with(path, lambda fh: np.savez(fh, step=np.int64(self.step), tool_names=names, **arrays))
+        else:
+            np.savez(path, step=np.int64(self.step), tool_names=names, **arrays)
 
     @classmethod
     def load(cls, path: str | Path) -> SimState:

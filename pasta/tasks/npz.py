@@ -2,14 +2,13 @@
 
 ``numpy.savez_compressed`` stamps every zip entry with the current time, so two runs that produce the
 same arrays still differ byte for byte. :func:`write_npz` writes the same format (``np.load`` reads it,
-``allow_pickle=False`` is enough) with a fixed timestamp, into a temporary file that is renamed into
-place only when complete: a killed run never leaves a half-written file under the final name.
+``allow_pickle=False`` is enough) with a fixed timestamp, through :func:`pasta.core.files.atomic_write`: a killed run never leaves a
+half-written file under the final name, and a link at the target is replaced, not followed.
 """
 
 from __future__ import annotations
 
 import io
-import os
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from pasta.core.errors import InputError
+from pasta.core.files import atomic_write
 
 _EPOCH = (1980, 1, 1, 0, 0, 0)
 
@@ -24,11 +24,9 @@ _EPOCH = (1980, 1, 1, 0, 0, 0)
 def write_npz(path: str | Path, arrays: Mapping[str, np.ndarray], *, compress: bool = True) -> Path:
     """Write ``arrays`` (name -> array; strings become 0-d unicode arrays) to ``path`` atomically."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-    try:
-        with open(tmp, "wb") as fh, zipfile.ZipFile(fh, "w", compression=method) as zf:
+    with atomic_write(path) as fh:
+        with zipfile.ZipFile(fh, "w", compression=method) as zf:
             for name, value in arrays.items():
                 arr = np.asarray(value)
                 if arr.dtype == object:
@@ -41,10 +39,6 @@ def write_npz(path: str | Path, arrays: Mapping[str, np.ndarray], *, compress: b
                 info.compress_type = method
                 info.external_attr = 0o644 << 16
                 zf.writestr(info, buf.getvalue())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 

@@ -18,18 +18,17 @@ e.g. ``skills=push scene=wide``, ``skills=roll scene=board``.
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 import zlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from pasta.core.metrics import emd, normalized_improvement
+from pasta.core.files import write_json
 
 __all__ = ["EvaluateConfig", "SkillConfig", "evaluate_command", "evaluate_skill", "make_configs", "table"]
 
@@ -245,5 +244,5 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
             results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, cfg.n, cfg.seed, scene=cfg.scene),
                                            controllers, learned_max_steps=cfg.learned_max_steps or None)
     if cfg.json:
-        Path(cfg.json).write_text(json.dumps(results, indent=1) + "\n")
+        write_json(cfg.json, results, indent=1)
     return results

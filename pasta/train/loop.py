@@ -24,6 +24,7 @@ from typing import Any, Protocol
 import torch
 
 from pasta.core.errors import ConfigError
+from pasta.core.files import OutputLock
 from pasta.io.checkpoint import IncompatibleCheckpointError, checkpoint_exists, load_checkpoint, save_checkpoint
 
 
@@ -94,7 +95,7 @@ def fit(task: TrainTask, cfg: LoopConfig, out_dir: str | Path, *, name: str = "m
 
     ``name``: the checkpoint of the best weights, ``OUT/<name>.*``; the state to resume from is
     ``OUT/last.*`` (``OUT/<name>_last.*`` for another name than ``model``, :func:`last_name`)."""
-    with torch_threads(cfg.threads):
+    with torch_threads(cfg.threads), OutputLock(out_dir, "out"):  # one trainer per folder
         return _fit(task, cfg, Path(out_dir), name)
 
 

@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from pasta.core.errors import ConfigError
+from pasta.core.files import write_json
 from pasta.train.policy_data import Batch, DemoSet
 from pasta.policy.learned import MODULE, LearnedPolicy
 from pasta.policy.network import PolicyConfig, PolicyNet
@@ -225,8 +226,6 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     (:class:`PolicyTrainConfig`) and ``threads`` (torch CPU threads, 0 = leave as is). Writes
     ``MODELS/policy/<skill>/model.*`` and ``metrics.json``; returns the metrics.
     """
-    import json
-
     from pasta.policy import POLICY_DIR
 
     pairs = dict(overrides or {})
@@ -241,5 +240,5 @@ def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] |
     metrics = {"module": MODULE, "skill": skill, "data": str(data), "train_demos": len(task.train_set.demos),
                "train_transitions": len(task.train_set), "best_epoch": result.best_epoch,
                "best_val_loss": result.best_val_loss, **figures}
-    (directory / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_json(directory / "metrics.json", metrics)
     return metrics

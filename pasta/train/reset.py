@@ -12,7 +12,6 @@ of the expert's align phase (:func:`align_offset`: the first step with a vertica
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -23,6 +22,7 @@ import torch
 from torch import nn
 
 from pasta.core.errors import ConfigError
+from pasta.core.files import write_json
 from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, reset_inputs, x_at_share
 from pasta.train.loop import LoopConfig, fit, numpy_rng, torch_threads
 
@@ -306,7 +306,7 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
         _, metrics = train_reset(train, val, net_cfg, out=out, loop=loop, noise=cfg.noise, skill=skill_obj,
                                  encoder=encoder, decoded_goals=cfg.decoded_goals, decoded_noise=cfg.decoded_noise)
     metrics = {"module": MODULE, "skill": skill, "data": str(data), "start_step": cfg.start_step, **metrics}
-    (Path(out) / METRICS).write_text(json.dumps(metrics, indent=2) + "\n")
+    write_json(Path(out) / METRICS, metrics)
     return metrics
 
 

@@ -10,7 +10,6 @@ feasibility and cost read the scene VAE ``OUT/vae``.
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Mapping
 from pathlib import Path
@@ -18,6 +17,7 @@ from typing import Any
 
 from pasta.config.overrides import build_many
 from pasta.core.errors import ConfigError, did_you_mean
+from pasta.core.files import write_json
 from pasta.nn import COST_DIR, FEASIBILITY_DIR, VAE_DIR
 from pasta.train.cost import CostTask, CostTrainConfig, entity_pairs
 from pasta.demos.data import load_demos, split_by_demo
@@ -68,7 +68,7 @@ def _split(data: Path, cfg: Any, loop: LoopConfig, stage: str, skills: list[str]
 def _finish(directory: Path, module: str, result: Any, figures: dict[str, Any], data: Path, n_train: int, n_val: int) -> dict[str, Any]:
     metrics = {"module": module, "data": str(data), "train_demos": n_train, "heldout_demos": n_val,
                "best_epoch": result.best_epoch, "best_val_loss": result.best_val_loss, **figures}
-    (directory / "metrics.json").write_text(json.dumps(metrics, indent=2) + "\n")
+    write_json(directory / "metrics.json", metrics)
     return metrics
 
 

@@ -37,6 +37,7 @@ import numpy as np
 
 from pasta.core import Controller, SkillObservation, Stop
 from pasta.core.errors import ConfigError
+from pasta.core.files import append_text, write_json, write_text
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.train.evaluate import SkillRunSettings
 
@@ -141,7 +142,7 @@ def write_rule(directory: str | Path, rule: dict[str, Any]) -> None:
     path = Path(directory) / "model.json"
     doc = json.loads(path.read_text())
     doc["config"]["controller"] = rule
-    path.write_text(json.dumps(doc, indent=2) + "\n")
+    write_json(path, doc)
 
 
 @dataclass
@@ -237,16 +238,14 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
     key = {"skill": skill, "config": {k: v for k, v in asdict(cfg).items() if k not in ("threads", "progress", "write")}}
     rows = _read_partial(partial, key) if resume and partial is not None else []
     if partial is not None and not rows:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        partial.write_text(json.dumps({"key": key}) + "\n")
+        write_text(partial, json.dumps({"key": key}) + "\n")
     elif rows and cfg.progress:
         print(f"  {skill}: resuming after {len(rows)} of {cfg.n} configs ({partial})", file=sys.stderr, flush=True)
     for c in configs[len(rows):]:
         res = sweep(sim, sk, [c], thresholds, min_steps, caps, max_steps=limit, verbose=cfg.progress)
         row = {"seed": c.seed, "ni": res["ni"][0], "steps": res["steps"][0]}
         if partial is not None:
-            with partial.open("a") as f:
-                f.write(json.dumps(row) + "\n")
+            append_text(partial, json.dumps(row) + "\n")
         rows.append(row)
     rules = [[float(t), int(m), int(c)] for c in caps for m in min_steps for t in thresholds]
     result = {"rules": rules, "ni": [r["ni"] for r in rows], "steps": [r["steps"] for r in rows]}
@@ -256,7 +255,7 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
            "settings": key["config"],
            "selected": {**rule, "mean_ni": best}, **result}
     if out is not None:
-        out.write_text(json.dumps(doc, indent=1) + "\n")
+        write_json(out, doc, indent=1)
         partial.unlink(missing_ok=True)
     if cfg.write:
         write_rule(directory, rule)

@@ -15,6 +15,7 @@ import numpy as np
 import torch
 
 from pasta.core.errors import InputError
+from pasta.core.files import save_with
 from pasta.nn.vae import MODULE, PointVAE, cube_template
 from pasta.demos.data import Demo, demo_entities
 
@@ -193,8 +194,7 @@ def reconstruction_figure(encoder: Any, clouds: torch.Tensor, path: str | Path, 
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=90)
+    path = save_with(path, lambda fh: fig.savefig(fh, dpi=90, format="png"))
     plt.close(fig)
     return path
 

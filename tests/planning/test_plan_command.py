@@ -302,8 +302,33 @@ def test_contract_checks_and_exit_codes(tmp_path, analytic_plugins, capsys):
 def test_decompose_keys_reach_dbscan(tmp_path, analytic_plugins):
     obs, goal = _clouds(tmp_path)
     out = tmp_path / "o"
-    # a radius that spans the whole scene merges the goal's two pieces: a plan far from the real goal
-    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "perception.eps=0.9"]) == 3
+    # a radius that spans the whole scene merges the goal's two pieces: a plan far from the real goal (their
+    # merged hull is 3.7 times the observed volume: let it through check.volume_ratio to see the plan's flag)
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "perception.eps=0.9",
+                 "check.volume_ratio=5"]) == 3
     assert json.loads((out / "entities.json").read_text())["goal"] == 1  # planned 1 -> 1, flagged unreachable
     assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "perception.min_samples=3"]) == 0
     assert json.loads((out / "plan.json").read_text())["info"]["input"]["decompose"]["min_samples"] == 3
+
+
+def test_plan_never_writes_through_a_link_planted_in_out(tmp_path, analytic_plugins):
+    """Links at every file name `pasta plan` writes (and at their temporary names) point outside out=: the
+    plan is written, the files outside are untouched, and every output is a regular file (issue 41)."""
+    from output_links import assert_regular, assert_untouched, plant_links, written_files
+
+    p, enc = analytic_problem(), AnalyticEncoder()
+    obs, goal = tmp_path / "obs_mm.npy", tmp_path / "goal_mm.npy"  # millimetres: sub-goals are also written in them
+    np.save(obs, 1000 * enc.decode(p.obs, 300).reshape(-1, 3).numpy())
+    np.save(goal, 1000 * enc.decode(p.goal, 300).reshape(-1, 3).numpy())
+    first = tmp_path / "first"
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={first}", *ARGS, "units=mm"]) == 0
+    names = written_files(first)
+    assert {"plan.json", "entities.json", "obs_labels.npy", "goal_labels.npy", "step_0_subgoal.npy",
+            "step_0_subgoal_input.npy"} <= set(names)
+    out = tmp_path / "out"
+    planted = plant_links(out, names, tmp_path / "victims")
+    assert main(["plan", f"obs={obs}", f"goal={goal}", f"out={out}", *ARGS, "units=mm"]) == 0
+    assert_untouched(planted)
+    assert_regular(out, names)
+    again, before = (Plan.from_json((d / "plan.json").read_text()) for d in (out, first))
+    assert again.skills == before.skills and again.score == before.score
