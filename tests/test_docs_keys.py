@@ -54,7 +54,9 @@ def valid_keys() -> dict[str, set[str]]:
     for name in plugins.tasks.names():
         keys |= flat(load_config([f"task={name}"]))
     keys |= {f"sim.tool_friction.{t}" for t in plugins.tools.names()} | {"controller"} | set(_fields(RunConfig))
-    backend = {"backend", "ray.address", "ray.num_cpus"}
+    from pasta.distributed import BACKEND_KEYS
+
+    backend = set(BACKEND_KEYS)
     return {"config": keys, "run": keys | _fields(RunArgs), "eval": keys | _fields(EvalArgs) | backend,
             "plan": keys | set(COMMAND_KEYS)}
 

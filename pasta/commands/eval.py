@@ -6,7 +6,9 @@ finished episode is appended to ``OUT/<task>_<method>[_<setting>...][_val].jsonl
 so an interrupted evaluation resumes where it stopped (``resume=false`` starts over; a file of other settings
 is never resumed); the summary (mean +/- std
 of the normalised improvement, success rate, planning and execution seconds) is printed and written
-next to it as ``.json``.
+next to it as ``.json``. With ``workers=N`` or ``backend=ray``, a worker still on one episode after
+``deadline_s`` seconds (default :func:`episode_deadline`, from the task's horizon and step limits) is given
+up and the episode retried once, then reported as failed.
 """
 
 from __future__ import annotations
@@ -34,10 +36,16 @@ EPILOG = """examples:
   pasta eval task=crs_distractors num=10 task.distractors=4   # a task setting: its own instances and result file
   pasta eval task=crs workers=2                          # two episodes at a time, in local worker processes
   pasta eval task=crs backend=ray ray.address=auto       # episodes as Ray tasks on a cluster
-keys of this command: num split(test|val) out resume workers backend(local|ray) ray.address ray.num_cpus; every
-other key=value is a run-config key (`pasta config task=crs` lists them; controller=X is short for
-execute.controller=X). The result file is OUT/<task>_<method>[_<setting>...][_val].jsonl, named by the settings
-given; a file of other settings is never resumed."""
+  pasta eval task=crs workers=2 deadline_s=1800          # give up a worker still on one episode after 30 min
+keys of this command: num split(test|val) out resume workers backend(local|ray) ray.address ray.num_cpus
+deadline_s; every other key=value is a run-config key (`pasta config task=crs` lists them; controller=X is short
+for execute.controller=X). The result file is OUT/<task>_<method>[_<setting>...][_val].jsonl, named by the
+settings given; a file of other settings is never resumed.
+deadline_s (workers or Ray only): seconds a worker may spend on one episode before it is killed (Ray: its task
+cancelled) and the episode retried once, then reported as failed; 0 (the default) derives it from the task:
+10 min of start-up and kernel compile, 200 s of planning per horizon step (none for method=oracle) and 1 s per
+simulator step the episode may take at most (instance generation, then every step, 1 + execute.retries times, at
+the longest max_steps of the skills planned with + execute.overrun + execute.idle_steps); crs: about 50 min."""
 
 
 @dataclass
@@ -143,6 +151,34 @@ def eval_job(state: EvalState, seed: int, attempt: int) -> dict[str, Any]:
             "provenance": state.machine}
 
 
+#: the default deadline's planning allowance per horizon step (a crs plan takes 5-130 s on a 2-core machine)
+PLAN_S = 200.0
+
+
+def episode_deadline(session: Any) -> float:
+    """The default ``deadline_s`` of ``pasta eval``: the most simulator steps an episode of ``session`` may
+    take, sized by :func:`pasta.distributed.sized_deadline`, plus :data:`PLAN_S` per horizon step (none for
+    the oracle, which does not plan). The steps: generating the instance (the task's chain, on a cold task
+    cache) and executing ``horizon`` steps, each up to ``1 + execute.retries`` times, every skill run at the
+    longest step limit (``skill.<name>.max_steps``) of the skills planned with (the oracle: the task's
+    chain) plus ``execute.overrun`` and ``execute.idle_steps``."""
+    from pasta.config import section
+    from pasta.distributed import STEP_PARTICLES, sized_deadline
+
+    cfg, task = session.cfg, session.task
+    exe = section(cfg, "execute")
+    horizon = int(cfg.horizon or task.horizon)
+    names = {getattr(sk, "name", "") for sk in getattr(session, "skills", None) or ()} | set(task.skeleton)
+    limits = cfg.get("skill") or {}
+    longest = max((int(limits[n].get("max_steps", 50)) for n in names if n in limits), default=50)
+    tcfg = getattr(task, "config", None)
+    idle, settle = int(getattr(tcfg, "idle_steps", 10)), int(getattr(tcfg, "settle_steps", 10))
+    generate = settle + len(task.skeleton) * (longest + idle)
+    execute = horizon * (1 + int(exe.retries)) * (longest + int(exe.overrun) + int(exe.idle_steps))
+    plan = 0.0 if str(cfg.method) == "oracle" else PLAN_S * horizon
+    return sized_deadline(generate + execute, int(getattr(tcfg, "n_particles", STEP_PARTICLES)), plan)
+
+
 def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import print_skill_warning, split_command_keys
     from pasta.config.validate import check_choice, check_int, check_output_dir, check_output_file
@@ -193,11 +229,12 @@ def run(args: argparse.Namespace) -> int:
           file=sys.stderr)
     where = "" if backend.name == "local" and not opts.workers else f" on {backend.describe()}" + (
         f" with {opts.workers} workers" if opts.workers else "")
+    deadline = backend.deadline_s or episode_deadline(session)  # not used by episodes run in this process
     failed: dict[int, str] = {}
     refused: dict[int, int] = {}  # seed -> exit code of an episode refused for a named reason
     try:
         for outcome in map_jobs(eval_init, eval_job, setup, todo, backend=backend, workers=opts.workers,
-                                label="episode", prog="pasta eval", state=state):
+                                deadline_s=deadline, label="episode", prog="pasta eval", state=state):
             seed = int(outcome.item)
             if not outcome.ok:
                 failed[seed] = outcome.error or ""

@@ -21,6 +21,10 @@ EPILOG = """arguments (key=value):
   backend=local          local | ray: where the demos units make their demonstrations (Ray tasks;
                          ray.address=auto joins a cluster, none starts a local Ray instance;
                          `pip install pasta-dough[ray]`, docs/scaling.md); never causes a rerun
+  deadline_s=0           seconds a worker may spend on one demonstration before it is killed (Ray:
+                         its task cancelled) and the demo retried once, then reported; 0: derived
+                         from each skill's max_steps and n_particles (11-13 min at the defaults);
+                         never causes a rerun
   stages=demos,vae,feasibility,cost,policy,reset,select
                          stages to run, in this order whatever the order given
   skills=auto            skills of the per-skill stages (demos, feasibility, policy, reset, select);

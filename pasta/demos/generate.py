@@ -23,7 +23,9 @@ that exist are skipped, and each file is written under a temporary name and rena
 Demos are made by :func:`pasta.distributed.map_jobs`: in this process, in local worker processes
 (``spawn``, each with its own Taichi runtime; a worker that dies is replaced and its demo retried, workers
 die with the parent: :mod:`pasta.distributed.local`) or as Ray tasks (``backend=ray``,
-:mod:`pasta.distributed.ray_backend`). Only this process writes the files, whatever made the arrays.
+:mod:`pasta.distributed.ray_backend`). Only this process writes the files, whatever made the arrays. A
+worker still on one demo after ``deadline_s`` seconds (default :func:`demo_deadline`, from the skill's
+step limit) is given up and the demo retried, as after a death.
 """
 
 from __future__ import annotations
@@ -257,6 +259,18 @@ def failure_report(cfg: DemoConfig, failures: dict[int, str]) -> str:
                       f"out={cfg.out} workers=0 scene={cfg.scene}", *([detail] if detail else [])])
 
 
+def demo_deadline(cfg: DemoConfig) -> float:
+    """The default ``deadline_s`` of ``pasta demos``: a demo is at most ``settle_steps`` + the skill's
+    ``max_steps`` + ``idle_steps`` simulator steps at ``n_particles``, sized by
+    :func:`pasta.distributed.sized_deadline` (with the first demo's kernel compile; minutes, not seconds)."""
+    from pasta.distributed import sized_deadline
+    from pasta.plugins import get_plugins
+
+    skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
+    limit = int(getattr(skill, "max_steps", 50))  # what run_skill stops the expert at
+    return sized_deadline(cfg.settle_steps + limit + cfg.idle_steps, cfg.n_particles)
+
+
 def demo_init(setup: dict) -> DemoWriter:
     """A worker's state for demos (:func:`pasta.distributed.map_jobs`): one simulator, reused."""
     return DemoWriter(DemoConfig(**setup))
@@ -273,9 +287,10 @@ def generate_demos(cfg: DemoConfig, *, progress: bool = True, max_attempts: int 
 
     The demos are made by :func:`pasta.distributed.map_jobs`: in this process (``workers=0``), in
     ``cfg.workers`` local worker processes, or with ``backend`` Ray as Ray tasks (``cfg.workers``: the
-    most in flight, 0: the cluster's CPUs). A demo whose worker dies is retried, up to ``max_attempts``
-    times. Workers only compute; this process writes every file as its demo arrives, so an interrupted
-    run loses only the demos in flight.
+    most in flight, 0: the cluster's CPUs). A demo whose worker dies, or is given up after
+    ``backend.deadline_s`` seconds on it (0: :func:`demo_deadline`; not in this process), is retried, up
+    to ``max_attempts`` times. Workers only compute; this process writes every file as its demo arrives,
+    so an interrupted run loses only the demos in flight.
 
     Returns a summary: ``generated``, ``skipped``, ``wall_s``, ``mean_steps``, ``backend``.
     Raises :class:`ConfigError` on bad arguments before any work, :class:`DemoWorkerError` naming the
@@ -304,7 +319,8 @@ def _generate(cfg: DemoConfig, backend: BackendConfig, *, progress: bool, max_at
         with Progress(*columns, disable=not progress or not todo) as bar:
             task = bar.add_task(f"demos {cfg.skill}", total=len(todo))
             for outcome in map_jobs(demo_init, demo_job, asdict(cfg), todo, backend=backend, workers=workers,
-                                    max_attempts=max_attempts, label="demo", prog="pasta demos"):
+                                    max_attempts=max_attempts, deadline_s=backend.deadline_s or demo_deadline(cfg),
+                                    label="demo", prog="pasta demos"):
                 if outcome.ok:
                     write_npz(demo_path(cfg.out, cfg.skill, outcome.item), outcome.value)
                     steps.append(int(outcome.value["action"].shape[0]))

@@ -10,6 +10,14 @@ a lost node, a lost result) is submitted again with ``attempt + 1`` until ``max_
 same warning and the same failure report as the local backend. An exception raised by a job is
 returned as that item's error at once (it would repeat).
 
+Deadlines (``deadline_s``): a task is a generator that reports ``begin`` when it runs and ``ready`` when
+its worker has its state, before the item's result. So the driver knows which tasks run, not just wait
+for a CPU (those have no deadline: on a busy cluster they may wait long), and starts an item's clock at
+``ready``, as the local backend does (``init`` is not counted; it has its own limit,
+``max(STARTUP_S, deadline_s)`` from ``begin``). ``ray.wait`` never blocks past the nearest deadline; an
+overdue task is cancelled (``ray.cancel(force=True)``: Ray kills its worker, stopped or not) and costs one
+attempt, then its item is submitted again or, after ``max_attempts``, reported as failed.
+
 What travels to the workers: the job's functions by reference (pasta must be installed on every node,
 in the same version), the setup (a small dict of settings), the driver's ``PASTA_*`` environment
 variables (cache folders, test hooks). Model weights are read by the workers from the paths in the
@@ -20,14 +28,18 @@ offline cache. See docs/scaling.md.
 from __future__ import annotations
 
 import atexit
+import math
 import os
+import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from pasta.core.errors import ConfigError
-from pasta.distributed import (RAY_INSTALL, BackendConfig, BackendError, Outcome, apply_env, call_job, shipped_env,
-                               test_kill, warn, worker_state)
+from pasta.distributed import (RAY_INSTALL, STARTUP_S, BackendConfig, BackendError, Outcome, apply_env, attempts_error,
+                               call_job, due_time, overdue_reason, run_test_hooks, seconds, shipped_env, wait_timeout,
+                               warn, worker_state)
 
 _STARTED: list[bool] = []  # whether this process started the Ray instance it uses (then it stops it at exit)
 
@@ -87,17 +99,23 @@ def _probe(address: str, timeout_s: float = 5.0) -> None:
                            "running there?)") from None
 
 
-def _task(init: Callable, job: Callable, setup: Any, item: Any, attempt: int, env: dict, kill: str) -> tuple[str, Any]:
-    """The body of every Ray task: ``("done", value)``, ``("error", traceback)`` or ``("start_error", traceback)``."""
+def _task(init: Callable, job: Callable, setup: Any, item: Any, attempt: int, env: dict,
+          hooks: Mapping[str, str]) -> Iterator[tuple[str, Any]]:
+    """The body of every Ray task, a generator: ``("begin", None)`` as it starts, ``("ready", None)`` once its
+    worker has its state (the item's deadline counts from there), then ``("done", value)`` or
+    ``("error", traceback)``; ``("start_error", traceback)`` instead of ``ready`` when ``init`` fails."""
     import traceback
 
+    yield "begin", None
     apply_env(env)
     try:
         state = worker_state(init, setup)
     except Exception:  # noqa: BLE001 - the driver stops the run: every item would fail the same way
-        return "start_error", traceback.format_exc()
-    test_kill(kill, item, attempt)
-    return call_job(job, state, item, attempt)
+        yield "start_error", traceback.format_exc()
+        return
+    yield "ready", None
+    run_test_hooks(hooks, item, attempt)
+    yield call_job(job, state, item, attempt)
 
 
 def _death_errors(ray: Any) -> tuple[type, ...]:
@@ -109,61 +127,111 @@ def _death_errors(ray: Any) -> tuple[type, ...]:
 
 
 def run_ray(init: Callable, job: Callable, setup: Any, items: list, *, cfg: BackendConfig, workers: int,
-            max_attempts: int, label: str, prog: str, kill: str = "") -> Iterator[Outcome]:
+            max_attempts: int, label: str, prog: str, deadline_s: float = 0.0,
+            hooks: Mapping[str, str] | None = None) -> Iterator[Outcome]:
     """Run the items as Ray tasks, at most ``workers`` in flight (0: the cluster's CPUs); an iterator of
-    outcomes. Connects to Ray now (an unreachable cluster fails here, before the first result)."""
+    outcomes. ``deadline_s``: seconds a task may spend on its item (0: no deadline; see the module
+    docstring). Connects to Ray now (an unreachable cluster fails here, before the first result)."""
     ray = ensure_ray(cfg)
     return _outcomes(ray, init, job, setup, items, workers=workers, max_attempts=max_attempts, label=label,
-                     prog=prog, kill=kill)
+                     prog=prog, deadline_s=deadline_s, hooks=dict(hooks or {}))
+
+
+@dataclass(eq=False)
+class _Task:
+    """A task in flight: its item, and when it passes its deadline (``inf`` while it waits for a CPU)."""
+
+    item: Any
+    due: float = math.inf
+    starting: bool = False  # it reported begin, not ready yet: its worker is building its state
 
 
 def _outcomes(ray: Any, init: Callable, job: Callable, setup: Any, items: list, *, workers: int, max_attempts: int,
-              label: str, prog: str, kill: str) -> Iterator[Outcome]:
-    remote = ray.remote(num_cpus=1, max_retries=0)(_task)
+              label: str, prog: str, deadline_s: float, hooks: dict, poll_s: float = 1.0) -> Iterator[Outcome]:
+    remote = ray.remote(num_cpus=1, max_retries=0, num_returns="streaming")(_task)
     env = shipped_env()
     deaths = _death_errors(ray)
     limit = workers if workers > 0 else max(1, int(ray.cluster_resources().get("CPU", 1)))
     setup_ref = ray.put(setup)  # sent once, not with every task
+    startup_s = max(STARTUP_S, deadline_s) if deadline_s > 0 else 0.0
     queue: deque = deque(items)
     attempts: dict[Any, int] = {}
-    inflight: dict[Any, Any] = {}  # ObjectRef -> item
+    reasons: dict[Any, list[str]] = {}  # item -> how each of its attempts ended without a result
+    inflight: dict[Any, _Task] = {}  # ObjectRefGenerator -> its task
 
     def submit() -> None:
         while queue and len(inflight) < limit:
             item = queue.popleft()
             attempts[item] = attempts.get(item, 0) + 1
-            inflight[remote.remote(init, job, setup_ref, item, attempts[item], env, kill)] = item
+            inflight[remote.remote(init, job, setup_ref, item, attempts[item], env, hooks)] = _Task(item)
+
+    def lost(task: _Task, reason: str, warning: str) -> Outcome | None:
+        """An attempt that ended without a result: the item goes back to the queue, or its failure."""
+        item = task.item
+        reasons.setdefault(item, []).append(reason)
+        if attempts[item] >= max_attempts:
+            return Outcome(item, error=attempts_error(reasons[item]), attempts=attempts[item])
+        warn(prog, f"{warning}; {label} {item} goes back to the queue")
+        queue.appendleft(item)
+        return None
+
+    def receive(gen: Any) -> Outcome | None:
+        """The task's next message: its start (the clock is set), or its end (``gen`` leaves ``inflight``)."""
+        task = inflight[gen]
+        try:
+            status, value = ray.get(next(gen))
+        except deaths as exc:
+            del inflight[gen]
+            why = type(exc).__name__
+            return lost(task, f"its Ray worker died ({why})", f"Ray worker died ({why}) on {label} {task.item}")
+        except ray.exceptions.RayTaskError as exc:  # outside the job (e.g. unpickling its arguments)
+            del inflight[gen]
+            return Outcome(task.item, error=f"raised an exception:\n{exc}", attempts=attempts[task.item])
+        if status in ("begin", "ready"):
+            task.starting = status == "begin"
+            task.due = due_time(startup_s if task.starting else deadline_s)
+            return None
+        del inflight[gen]
+        if status == "start_error":
+            raise BackendError(f"a Ray worker could not start:\n{value}")
+        if status == "error":
+            return Outcome(task.item, error=f"raised an exception:\n{value}", attempts=attempts[task.item])
+        return Outcome(task.item, value=value, attempts=attempts[task.item])
+
+    def give_up(gen: Any) -> Outcome | None:
+        """Cancel an overdue task (Ray kills its worker, even a stopped one) and count the attempt."""
+        task = inflight.pop(gen)
+        _cancel(ray, gen)
+        if task.starting:
+            why = f"did not start within {seconds(startup_s)} s"
+            return lost(task, f"its Ray worker {why}",
+                        f"the Ray worker for {label} {task.item} {why}; its task was cancelled")
+        return lost(task, overdue_reason(deadline_s), f"the Ray task of {label} {task.item} exceeded the deadline of "
+                    f"{seconds(deadline_s)} s and was cancelled")
 
     try:
         submit()
         while inflight:
-            ready, _ = ray.wait(list(inflight), num_returns=1)
-            for ref in ready:
-                item = inflight.pop(ref)
-                try:
-                    status, value = ray.get(ref)
-                except deaths as exc:
-                    why = type(exc).__name__
-                    if attempts[item] >= max_attempts:
-                        yield Outcome(item, error=f"its Ray worker died ({why}) on each of {attempts[item]} attempts",
-                                      attempts=attempts[item])
-                    else:
-                        warn(prog, f"Ray worker died ({why}) on {label} {item}; {label} {item} goes back to the queue")
-                        queue.appendleft(item)
-                    continue
-                except ray.exceptions.RayTaskError as exc:  # outside the job (e.g. unpickling its arguments)
-                    yield Outcome(item, error=f"raised an exception:\n{exc}", attempts=attempts[item])
-                    continue
-                if status == "start_error":
-                    raise BackendError(f"a Ray worker could not start:\n{value}")
-                if status == "error":
-                    yield Outcome(item, error=f"raised an exception:\n{value}", attempts=attempts[item])
-                else:
-                    yield Outcome(item, value=value, attempts=attempts[item])
+            # never wait past the nearest deadline (a stopped worker sends nothing and does not die), nor
+            # longer than poll_s: Python's signal handlers (Ctrl-C) run only between Ray's waits
+            timeout = wait_timeout((task.due for task in inflight.values()), poll_s)
+            ready, _ = ray.wait(list(inflight), num_returns=1, timeout=timeout)
+            for gen in ready:
+                outcome = receive(gen)
+                if outcome is not None:
+                    yield outcome
+            for gen in [g for g, task in inflight.items() if task.due <= time.monotonic()]:
+                outcome = give_up(gen)
+                if outcome is not None:
+                    yield outcome
             submit()
     finally:
-        for ref in inflight:  # an error or Ctrl-C in the driver: the rest is not wanted
-            try:
-                ray.cancel(ref, force=True)
-            except Exception:  # noqa: BLE001 - best effort; the instance goes at exit
-                pass
+        for gen in inflight:  # an error or Ctrl-C in the driver: the rest is not wanted
+            _cancel(ray, gen)
+
+
+def _cancel(ray: Any, gen: Any) -> None:
+    try:
+        ray.cancel(gen, force=True)
+    except Exception:  # noqa: BLE001 - best effort; the instance goes at exit
+        pass

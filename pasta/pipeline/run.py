@@ -38,8 +38,10 @@ missing files (it never rewrites existing ones).
 
 Backends. ``backend=ray`` (with ``ray.address=``, :class:`pasta.distributed.BackendConfig`) makes the
 demos units' demonstrations as Ray tasks (``workers``: the most in flight); the training units run in
-this process, one after the other (each depends on the last, or trains on every skill's data). The
-backend is not part of a unit's settings: switching it never reruns a unit. See docs/scaling.md.
+this process, one after the other (each depends on the last, or trains on every skill's data).
+``deadline_s=`` goes to the demos units too (a worker still on one demo after it is given up; 0: each
+unit's :func:`pasta.demos.generate.demo_deadline`). Neither is part of a unit's settings: changing them
+never reruns a unit. See docs/scaling.md.
 
 Every unit's configuration is built up front with the trainers' own config builders, so a typo in
 ``<stage>.<key>=value`` fails with their "did you mean" message before any work starts.
@@ -369,7 +371,7 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
     from pasta.distributed import split_backend_args
 
     say = echo or (lambda line: print(line, flush=True))
-    backend, items = split_backend_args(items)  # backend= and ray.* go to the demos units, not to a stage
+    backend, items = split_backend_args(items)  # backend=, deadline_s= and ray.* go to the demos units, not to a stage
     backend.check()
     cfg, overrides = parse_arguments(items)
     units = plan(cfg, overrides)

@@ -49,6 +49,24 @@ def test_demo_that_always_kills_its_worker_is_reported_and_exit_is_nonzero(tmp_p
     assert sorted(p.name for p in (tmp_path / "push").iterdir()) == ["demo_00000.npz", "demo_00002.npz"]
 
 
+def test_demo_deadline_is_derived_from_the_skill_or_given(tmp_path, monkeypatch):
+    """The deadline handed to the workers: 0 derives it from the skill's step limit and the particles."""
+    import pasta.distributed
+    from pasta.demos.generate import demo_deadline
+    from pasta.distributed import STARTUP_S, BackendConfig
+
+    seen = []
+    monkeypatch.setattr(pasta.distributed, "map_jobs", lambda *a, **k: seen.append(k["deadline_s"]) or iter(()))
+    cfg = DemoConfig(skill="push", num=2, out=str(tmp_path), workers=2)
+    generate_demos(cfg, progress=False)
+    generate_demos(cfg, progress=False, backend=BackendConfig(deadline_s=42))
+    assert seen == [demo_deadline(cfg), 42.0]
+    # push: 10 settle + max_steps 80 + 10 idle steps at 1 s each, after the start-up allowance
+    assert demo_deadline(cfg) == STARTUP_S + 100
+    assert demo_deadline(DemoConfig(skill="lift")) == STARTUP_S + 180
+    assert demo_deadline(DemoConfig(skill="push", n_particles=10000)) == STARTUP_S + 200
+
+
 def _children(pid: int) -> list[int]:
     """Live (not zombie) processes whose parent is ``pid`` (Linux /proc)."""
     out = []

@@ -1,9 +1,12 @@
 """Small jobs for the backend tests (module-level functions: Ray and ``spawn`` send them by reference or value),
-and :func:`require_ray`."""
+:func:`require_ray`, and :func:`hang_guard` (a run that hangs fails its test instead of holding the suite)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
+import time
 
 from pasta.distributed import map_jobs
 
@@ -13,6 +16,9 @@ SETUP = {"scale": 10}
 def init(setup):
     if setup.get("fail_init"):
         raise RuntimeError("init failed on purpose")
+    if setup.get("stop_init"):  # a start that hangs: only the start-up limit ends it
+        time.sleep(0.5)  # Ray first reports that the task began
+        os.kill(os.getpid(), signal.SIGSTOP)
     return {"scale": setup["scale"], "pid": os.getpid()}
 
 
@@ -22,10 +28,27 @@ def job(state, item, attempt):
     return {"item": item, "value": item * state["scale"], "attempt": attempt, "pid": state["pid"]}
 
 
-def run(backend, workers, items=(0, 1, 2, 3, 4), setup=SETUP):
+def run(backend, workers, items=(0, 1, 2, 3, 4), setup=SETUP, deadline_s=0.0):
     """``{item: Outcome}`` of the toy job over ``items``."""
     return {o.item: o for o in map_jobs(init, job, setup, list(items), backend=backend, workers=workers,
-                                        label="toy", prog="test")}
+                                        deadline_s=deadline_s, label="toy", prog="test")}
+
+
+@contextlib.contextmanager
+def hang_guard(seconds=120):
+    """Fail after ``seconds`` (SIGALRM; both backends' waits return to Python at least every second): a
+    guard against a hang, not a timing check. The TimeoutError may surface chained to a SystemError when
+    it interrupts Ray's wait."""
+    def expired(signum, frame):
+        raise TimeoutError(f"the run did not return within {seconds} s")
+
+    before = signal.signal(signal.SIGALRM, expired)
+    signal.alarm(seconds)
+    try:
+        yield
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, before)
 
 
 def check_values(out, good=(0, 1, 2, 4)):

@@ -1,5 +1,6 @@
 """`pasta eval` through the backend: an episode that raises is reported with its seed, the others are
-written (by this process only), no summary is written, and the next run retries only the failed seed."""
+written (by this process only), no summary is written, and the next run retries only the failed seed; the
+episode deadline handed to the backend (``deadline_s=``, or derived from the task)."""
 
 from __future__ import annotations
 
@@ -52,3 +53,38 @@ def test_failed_episode_reported_with_its_seed_others_written_rerun_retries_it(t
     assert "3 test configs, 2 already in" in err and "seed 1001:" in err and "seed 1000:" not in err.split("already in")[1]
     assert sorted(json.loads(x)["seed"] for x in path.read_text().splitlines()) == [1000, 1001, 1002]
     assert json.loads(path.with_suffix(".json").read_text())["episodes"] == 3
+
+
+def test_deadline_is_derived_from_the_task_or_given(tmp_path, monkeypatch):
+    import pasta.distributed
+    from pasta.commands import eval as eval_cmd
+    from pasta.commands.eval import PLAN_S, episode_deadline
+    from pasta.execute.session import build_session
+    from pasta.tasks import get_task
+
+    task = get_task("push")
+    task.make_sim = lambda: None
+    monkeypatch.setattr("pasta.execute.session.build_session", lambda *a, **k: _FakeSession(task))
+    real, seen = pasta.distributed.map_jobs, []
+
+    def spy(*args, **kwargs):
+        seen.append(kwargs["deadline_s"])
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pasta.distributed, "map_jobs", spy)
+    _FakeSession.broken = set()
+    try:
+        assert eval_cmd.run(argparse.Namespace(overrides=["task=push", "num=1", f"out={tmp_path / 'a'}"])) == 0
+        assert eval_cmd.run(argparse.Namespace(overrides=["task=push", "num=1", f"out={tmp_path / 'b'}",
+                                                          "deadline_s=90"])) == 0
+    finally:
+        _FakeSession.broken = {1001}
+    assert seen == [episode_deadline(_FakeSession(task)), 90.0]
+    monkeypatch.undo()
+    # push (horizon 1, skill.push.max_steps=80, 5,000 particles): 600 s of start-up + 1 s per step at most:
+    # 10 settle + 80 + 10 idle to generate the instance, (80 + 40 overrun + 10 idle) x 2 (1 + execute.retries)
+    assert episode_deadline(build_session("push", ["method=oracle"])) == 600 + 100 + 260
+    assert episode_deadline(build_session("push", ["method=oracle", "execute.retries=0"])) == 600 + 100 + 130
+    assert episode_deadline(build_session("push", ["method=oracle", "task.n_particles=10000"])) == 600 + 2 * 360
+    # a planning method: PLAN_S per horizon step, every skill planned with at its own step limit (lift's 160)
+    assert episode_deadline(build_session("push")) == 600 + PLAN_S + (10 + 170) + (160 + 50) * 2

@@ -1,7 +1,9 @@
 """The Ray backend on a local Ray instance with 2 CPUs (``ray_local``, one per module: every Ray test is here).
 
 - ``map_jobs`` with toy jobs: values, a job's exception reported with its item, a killed worker retried
-  or reported after 2 attempts while the others complete, a failing ``init`` stopping the run.
+  or reported after 2 attempts while the others complete, a stopped (SIGSTOP) worker's task cancelled at
+  its deadline and retried or reported after 2 attempts, a worker that hangs while starting given up,
+  a failing ``init`` stopping the run.
 - The same seed gives the same results under ``backend=local`` and ``backend=ray`` (issue 19): demo
   files compared byte for byte (also after a Ray worker is killed mid-demo and after a resumed run), eval
   rows compared field by field less the wall times and the provenance (which name the process that ran them).
@@ -17,7 +19,7 @@ import pytest
 
 from pasta.cli import main
 from pasta.demos import DemoConfig, generate_demos
-from pasta.distributed import TEST_KILL_ENV, BackendConfig, BackendError
+from pasta.distributed import TEST_KILL_ENV, TEST_STOP_ENV, BackendConfig, BackendError
 
 TINY = dict(skill="push", n_particles=1000, obs_points=200, settle_steps=2, idle_steps=2, seed=3)
 RAY = BackendConfig(name="ray")
@@ -46,6 +48,34 @@ def test_ray_item_that_always_kills_its_worker_is_reported_others_complete(ray_l
     assert not out[2].ok and out[2].attempts == 2
     assert out[2].error == "its Ray worker died (WorkerCrashedError) on each of 2 attempts"
     assert all(out[i].ok for i in (0, 1, 4)) and not out[3].ok
+
+
+def test_ray_worker_stopped_once_passes_its_deadline_and_is_retried(ray_local, monkeypatch, capfd):
+    monkeypatch.setenv(TEST_STOP_ENV, "2@1")  # the worker on item 2 stops (SIGSTOP) on its first attempt only
+    with toy.hang_guard():
+        out = toy.run(RAY, 2, deadline_s=3)
+    toy.check_values(out)
+    assert out[2].attempts == 2 and out[2].value["attempt"] == 2
+    assert ("the Ray task of toy 2 exceeded the deadline of 3 s and was cancelled; toy 2 goes back to the queue"
+            in capfd.readouterr().err)
+
+
+def test_ray_item_that_always_hangs_is_reported_after_2_attempts_others_complete(ray_local, monkeypatch):
+    monkeypatch.setenv(TEST_STOP_ENV, "2")
+    with toy.hang_guard():
+        out = toy.run(RAY, 0, deadline_s=2.5)
+    assert not out[2].ok and out[2].attempts == 2
+    assert out[2].error == "it exceeded its deadline of 2.5 s on each of 2 attempts (deadline_s= sets the deadline)"
+    assert all(out[i].ok for i in (0, 1, 4)) and not out[3].ok
+
+
+def test_ray_worker_that_hangs_while_starting_is_cancelled_and_its_items_reported(ray_local, monkeypatch):
+    monkeypatch.setattr("pasta.distributed.ray_backend.STARTUP_S", 2.0)  # the limit from the task's begin to ready
+    with toy.hang_guard():
+        out = toy.run(RAY, 2, items=(0, 1), setup={"scale": 1, "stop_init": True}, deadline_s=1)
+    for i in (0, 1):
+        assert not out[i].ok and out[i].attempts == 2
+        assert out[i].error == "its Ray worker did not start within 2 s on each of 2 attempts"
 
 
 def test_init_failure_stops_the_run(ray_local):
