@@ -70,7 +70,7 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
         return EXIT_BAD_FILE
     with reader:
         try:
-            if reader.recover and not reader.complete:
+            if reader.recover and reader.recover_error:  # a cut, or damage past a whole data section
                 n = sum(i.count for i in reader.topic_info().values())
                 print(f"warning: recovered {n} messages from a damaged file; {reader.recover_error}", file=err)
             elif reader.status == "failed":

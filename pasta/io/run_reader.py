@@ -138,22 +138,40 @@ class RunReader:
         except _READ_ERRORS as e:
             raise McapFormatError(f"{self.path} is corrupt or unreadable: {what}: {type(e).__name__}: {e}") from e
 
-    def _open_indexed(self) -> None:
+    def _tail_problem(self) -> tuple[str, str] | None:
+        """What is wrong with the end of the file (footer, closing magic, summary CRC), as ``(kind, why)``
+        with kind ``truncated`` (the file was cut: nothing after the last byte) or ``corrupt`` (the end is
+        there but damaged, e.g. a flipped byte), or None when the end is sound."""
         if self._size < 2 * len(MAGIC) + _FOOTER_LEN:
-            self._truncated(f"only {self._size} bytes, too short for an MCAP footer")
+            return "truncated", f"only {self._size} bytes, too short for an MCAP footer"
         self._file.seek(self._size - len(MAGIC) - _FOOTER_LEN)
         tail = self._file.read(_FOOTER_LEN + len(MAGIC))
-        if tail[-len(MAGIC):] != MAGIC or tail[0] != 0x02 or struct.unpack("<Q", tail[1:9])[0] != 20:
-            self._truncated("no MCAP footer at the end of the file")
+        magic = tail[-len(MAGIC):]
+        if magic != MAGIC:
+            if sum(a != b for a, b in zip(magic, MAGIC)) <= 2:  # the closing magic is there, a byte or two off
+                return "corrupt", "the closing MCAP magic bytes are damaged"
+            return "truncated", "no MCAP footer at the end of the file"
+        if tail[0] != 0x02 or struct.unpack("<Q", tail[1:9])[0] != 20:
+            return "corrupt", "the footer record before the closing magic bytes is damaged"
         summary_start, _offsets_start, summary_crc = struct.unpack("<QQI", tail[9:_FOOTER_LEN])
         footer_pos = self._size - len(MAGIC) - _FOOTER_LEN
         if summary_start and summary_crc:
             if summary_start > footer_pos:
-                raise McapFormatError(f"{self.path} is corrupt: footer points past the end of the file")
+                return "corrupt", "the footer points past the end of the file"
             self._file.seek(summary_start)
             covered = self._file.read(footer_pos - summary_start) + tail[: _FOOTER_LEN - 4]
             if zlib.crc32(covered) != summary_crc:
-                raise McapFormatError(f"{self.path} is corrupt: summary section CRC mismatch")
+                return "corrupt", "summary section CRC mismatch"
+        return None
+
+    def _open_indexed(self) -> None:
+        problem = self._tail_problem()
+        if problem is not None:
+            kind, why = problem
+            if kind == "truncated":
+                self._truncated(why)
+            raise McapFormatError(f"{self.path} is corrupt: {why}. Read the messages before the damage with "
+                                  f"`pasta replay --recover {self.path}` or RunReader(path, recover=True).")
         self._file.seek(0)
         with self._errors("reading the summary"):
             self._reader = SeekingReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1024))
@@ -184,8 +202,10 @@ class RunReader:
         self._stream_metadata: list[Metadata] = []
         reader = StreamReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1024))
         self.complete = False
+        whole = 0  # where the last complete record ends
         try:
             for record in reader.records:
+                whole = self._file.tell()
                 if isinstance(record, Header):
                     self._header = record
                 elif isinstance(record, Schema):
@@ -204,11 +224,18 @@ class RunReader:
         except _READ_ERRORS as e:
             if strict:
                 raise McapFormatError(f"{self.path} is corrupt: {type(e).__name__}: {e}") from e
-            self.recover_error = (
-                f"stopped at byte {self._file.tell()} of {self._size}: {type(e).__name__}: {e}"
-            )
+            cut = type(e).__name__ == "EndOfFile"
+            self.recover_error = "the file ends inside a record (it was cut)" if cut else f"{type(e).__name__}: {e}"
         if not self.complete and self.recover_error is None:
             self.recover_error = "file ended before the data-section end record"
+        if not self.complete and whole < self._size:  # say what was left out: nothing past it is read
+            self.recover_error += (f"; kept the records up to byte {whole}, skipped the last {self._size - whole} "
+                                   f"bytes of {self._size}")
+        elif self.complete and not strict:
+            problem = self._tail_problem()  # the data section is whole: is what follows it (summary, footer)?
+            if problem is not None:
+                self.recover_error = (f"the data section is whole but the end of the file is damaged ({problem[1]}); "
+                                      "skipped the summary and footer, read every message from the data section")
         counts: dict[int, int] = {}
         for m in self._stream_messages:
             counts[m.channel_id] = counts.get(m.channel_id, 0) + 1

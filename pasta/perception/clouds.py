@@ -128,11 +128,16 @@ def read_transform(path: str | Path) -> np.ndarray:
 def read_cloud(path: str | Path, name: str = "cloud", *, max_file_points: int = MAX_FILE_POINTS) -> LoadedCloud:
     """Read ``.npy`` ``(P, 3)`` / ``(H, W, 3)`` or PLY; bad files raise :class:`InputError` naming the problem."""
     p = Path(path)
-    if not p.is_file():
+    if p.is_dir():
+        raise InputError(f"{name}={str(p)!r} is a directory; give a cloud file (.npy or .ply)")
+    if not p.exists():
         raise InputError(f"{name} file {str(p)!r} does not exist")
+    if not p.is_file():
+        raise InputError(f"{name} file {str(p)!r} is not a regular file (a device, pipe or socket)")
     suffix = p.suffix.lower()
     try:
         if suffix == ".npy":
+            _check_npy_magic(p, name)
             header = np.load(p, mmap_mode="r", allow_pickle=False)  # reads the shape, not the data
             count = int(np.prod(header.shape[:-1])) if header.ndim else 0
             _check_file_size(count, name, p, max_file_points)
@@ -167,6 +172,16 @@ def read_cloud(path: str | Path, name: str = "cloud", *, max_file_points: int = 
         raise InputError(f"{label} contains NaN or infinite values ({bad} of {len(flat)} points); only an organised "
                          "(H, W, 3) cloud may have NaN holes")
     return LoadedCloud(flat, np.ones(len(flat), bool), (len(flat),))
+
+
+def _check_npy_magic(path: Path, name: str) -> None:
+    """A ``.npy`` file starts with ``\\x93NUMPY``; without it numpy would try to unpickle the bytes, and its
+    error would call any file "pickled data"."""
+    with open(path, "rb") as fh:
+        head = fh.read(6)
+    if head != b"\x93NUMPY":
+        raise InputError(f"{name} file {str(path)!r} is not a .npy file (it does not start with the NumPy magic "
+                         "bytes \\x93NUMPY): save the cloud with numpy.save, or give a .ply")
 
 
 def _check_file_size(count: int, name: str, path: Path, limit: int) -> None:

@@ -88,3 +88,34 @@ def test_replay_cli_truncated(tmp_path, capsys):
     cap = capsys.readouterr()
     assert "RECOVERED" in cap.out and "/dough" in cap.out
     assert "recovered" in cap.err
+
+
+@pytest.mark.parametrize("back", [1, 4, 12, 20])  # the closing magic, the footer's CRC, its offsets, its opcode
+def test_a_flipped_byte_at_the_end_is_corrupt_not_truncated_and_recover_says_what_it_skipped(tmp_path, capsys, back):
+    from pasta.io import McapFormatError
+
+    full = tmp_path / "full.mcap"
+    clouds = _write(full, n=30)
+    data = bytearray(full.read_bytes())
+    data[len(data) - back] ^= 0x40
+    bad = tmp_path / "flipped.mcap"
+    bad.write_bytes(bytes(data))
+    with pytest.raises(McapFormatError) as exc:
+        RunReader(bad)
+    assert not isinstance(exc.value, McapTruncatedError)
+    assert "is corrupt" in str(exc.value) and "truncated" not in str(exc.value) and "--recover" in str(exc.value)
+    r = RunReader(bad, recover=True)
+    assert r.count("/dough") == len(clouds)  # every message is in the whole data section
+    assert "skipped the summary and footer" in r.recover_error
+    assert replay.run(_parse([str(bad), "--recover"])) == 0
+    assert "warning: recovered 60 messages from a damaged file; the data section is whole" in capsys.readouterr().err
+
+
+def test_recover_of_a_cut_file_says_how_many_bytes_it_skipped(tmp_path):
+    full = tmp_path / "full.mcap"
+    _write(full)
+    cut = tmp_path / "cut.mcap"
+    data = full.read_bytes()
+    cut.write_bytes(data[: len(data) // 2])
+    r = RunReader(cut, recover=True)
+    assert "skipped the last" in r.recover_error and r.recover_error.endswith(f"bytes of {len(data) // 2}")

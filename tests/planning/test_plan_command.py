@@ -332,3 +332,20 @@ def test_plan_never_writes_through_a_link_planted_in_out(tmp_path, analytic_plug
     assert_regular(out, names)
     again, before = (Plan.from_json((d / "plan.json").read_text()) for d in (out, first))
     assert again.skills == before.skills and again.score == before.score
+
+
+def test_misleading_cloud_file_messages_name_the_real_problem(tmp_path, analytic_plugins, capsys):
+    """Random bytes in a .npy are not "pickled data"; a directory is not "missing" (issue 41)."""
+    obs, goal = _clouds(tmp_path)
+    noise = tmp_path / "noise.npy"
+    noise.write_bytes(np.random.default_rng(0).bytes(4096))
+    (tmp_path / "a_dir.npy").mkdir()
+    for bad, message in [(noise, "is not a .npy file (it does not start with the NumPy magic bytes"),
+                         (tmp_path / "a_dir.npy", "is a directory; give a cloud file")]:
+        assert main(["plan", f"obs={bad}", f"goal={goal}", f"out={tmp_path / 'o'}", *ARGS]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and message in err[0] and "pickled" not in err[0], err
+    pickled = tmp_path / "objects.npy"
+    np.save(pickled, np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    assert main(["plan", f"obs={pickled}", f"goal={goal}", f"out={tmp_path / 'o'}", *ARGS]) == 2
+    assert "pickle" in capsys.readouterr().err  # a real object array is still named as one
