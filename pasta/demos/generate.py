@@ -31,8 +31,8 @@ step limit) is given up and the demo retried, as after a death.
 from __future__ import annotations
 
 import json
-import os
 import platform
+import tempfile
 import time
 import zlib
 from dataclasses import asdict, dataclass
@@ -107,9 +107,8 @@ def validate(cfg: DemoConfig) -> Path:
     folder = Path(cfg.out) / cfg.skill
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        probe = folder / f".write-test-{os.getpid()}"
-        probe.write_bytes(b"")
-        probe.unlink()
+        with tempfile.TemporaryFile(dir=folder):  # a fresh file of a random name: can we write there?
+            pass
     except OSError as exc:
         raise ConfigError(f"out={cfg.out}: cannot write demonstrations there ({exc.strerror or exc})") from None
     return folder

@@ -16,8 +16,9 @@ directory may also hold a learned reset pose, ``reset.safetensors`` + ``reset.js
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
+
+from pasta.core.files import write_bytes
 
 __all__ = ["ROOT", "bundle", "models_root", "shipped", "weight_overrides"]
 
@@ -56,10 +57,8 @@ def bundle(source: str | Path, target: str | Path | None = None) -> list[str]:
     for rel in shipped(source):
         if not (source / rel / "metrics.json").exists():  # unfinished: the trainer writes it last
             continue
-        dst = target / rel
-        dst.mkdir(parents=True, exist_ok=True)
         for name in _FILES:
-            if (source / rel / name).exists():
-                shutil.copy2(source / rel / name, dst / name)
+            if (source / rel / name).exists():  # written whole, never through a link (pasta.core.files)
+                write_bytes(target / rel / name, (source / rel / name).read_bytes())
         copied.append(rel)
     return copied
