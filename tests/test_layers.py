@@ -43,12 +43,14 @@ LAYERS: dict[int, tuple[str, ...]] = {
     8: ("pasta.execute", "pasta.testing", "plugins/*/*"),  # testing: what a plugin author tests a plugin with
     9: ("pasta.pipeline",),  # orchestrates demos -> train stages
     10: ("pasta.commands",),  # with pasta.cli and pasta.__main__ (MEMBERS)
+    11: ("pasta.api",),  # the Python surface: what `import pasta` exposes (loaded lazily by pasta/__init__)
 }
 #: the unit of the plugin packages in :data:`LAYERS` (one unit per package: they do not import each other)
 PLUGIN_PACKAGES = "plugins/*/*"
 #: modules that belong to a unit they are not under
 MEMBERS: dict[str, str] = {
-    "pasta": "pasta.core",  # the root package holds only __version__
+    "pasta": "pasta.api",  # the root package: __version__ and the lazy names of pasta.api
+    "pasta._version": "pasta.core",  # the version string, which any layer may report
     "pasta.cli": "pasta.commands",
     "pasta.__main__": "pasta.commands",
 }

@@ -51,10 +51,10 @@ def package_versions(names: tuple[str, ...] = PACKAGES) -> dict[str, str]:
     out = {}
     for name in names:
         if name == "pasta":  # the code that ran (the distribution's name differs, and a checkout may be newer)
-            import pasta
+            from pasta._version import __version__
 
             commit = _git_commit()
-            out[name] = pasta.__version__ + (f"+g{commit}" if commit else "")
+            out[name] = __version__ + (f"+g{commit}" if commit else "")
             continue
         try:
             out[name] = metadata.version(name)
