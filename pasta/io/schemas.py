@@ -147,6 +147,7 @@ def encode_point_cloud(
         packed["entity"] = entity_ids
     msg = PointCloud(frame_id=frame_id, point_stride=packed.dtype.itemsize, data=packed.tobytes())
     _stamp(msg.timestamp, t_ns)
+    msg.pose.position.SetInParent()  # present, at the origin: readers that require a full pose (Rerun) accept it
     msg.pose.orientation.w = 1.0
     for name in names:
         offset = packed.dtype.fields[name][1]
@@ -416,7 +417,8 @@ PLAN_SCHEMA: dict[str, Any] = {
                 "properties": {
                     "skill": _STR,
                     "inputs": {"type": "array", "items": _INT},
-                    "outputs": {"type": "array", "items": _INT},
+                    "outputs": {"type": "integer", "minimum": 0,
+                                "description": "how many pieces the step produces (its skill's M_k)"},
                     "feasibility": _NUM,
                 },
             },

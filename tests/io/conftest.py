@@ -21,7 +21,7 @@ def make_run(path, seed=0, n_steps=12, chunk_size=1024 * 1024, n_points=300):
         ents = [rng.random((40, 3)).astype(np.float32), rng.random((25, 3)).astype(np.float32)]
         log.entities("/entities", 0, ents)
         written["/entities"].append((0, ents))
-        plan = {"skills": ["cut", "push", "roll"], "steps": [{"skill": "cut", "inputs": [0], "outputs": [0, 1]}], "score": 0.75}
+        plan = {"skills": ["cut", "push", "roll"], "steps": [{"skill": "cut", "inputs": [0], "outputs": 2}], "score": 0.75}
         log.plan(0, plan)
         written["/plan"].append((0, plan))
         for i in range(5):
