@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from pasta.commands._progress import planning_bar
 from pasta.core.errors import ConfigError
 from pasta.core.files import OutputLock
 
@@ -27,7 +28,7 @@ EPILOG = """examples:
   pasta run task=crs seed=3 planner=sampling
   pasta run task=crs seed=1000 skills=cut,push,roll           # plan with these skills only
   pasta run task=crs_distractors seed=1000 task.distractors=4 # a task setting
-keys of this command: log=FILE.mcap summary=FILE.png; every other key=value is a run-config key (`pasta config
+keys of this command: log=FILE.mcap summary=FILE.png log_time=sim|wall; every other key=value is a run-config key (`pasta config
 task=crs` lists them: seed, method, models, horizon, skills, skeleton, planner, planner.*, perception.*,
 check.*, execute.*, sim.*, skill.<name>.*, task.*). controller=X is short for execute.controller=X."""
 
@@ -38,6 +39,9 @@ class RunArgs:
 
     log: str = ""
     summary: str = ""
+    #: the log's time axis: ``sim`` (simulation time, byte-reproducible) or ``wall`` (planning and slow steps
+    #: take their real length on a viewer's timeline)
+    log_time: str = "sim"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -84,6 +88,10 @@ def run(args: argparse.Namespace) -> int:
     opts, rest = split_command_keys(list(args.overrides), RunArgs)
     if not any(i.partition("=")[0] == "task" for i in rest):
         raise ConfigError("`pasta run` needs task=NAME (e.g. task=crs)")
+    from pasta.config.validate import check_choice
+    from pasta.io.run_log import CLOCKS
+
+    check_choice(opts.log_time, "log_time", CLOCKS)
     for key in ("log", "summary"):  # before anything is computed: a finished episode is never lost to a bad path
         if getattr(opts, key):
             check_output_file(getattr(opts, key), key)
@@ -105,12 +113,13 @@ def run(args: argparse.Namespace) -> int:
         setup = session.describe()
         meta = {"task": session.task.name, "method": session.method, "seed": str(seed), "planner": str(setup["planner"]),
                 "controller": setup["controller"], "skills": ",".join(setup["skills"]),
-                "pasta": __import__("pasta").__version__}
-        logger = RunLogger(opts.log, config_yaml=to_yaml(session.cfg), metadata=meta)
+                "pasta": __import__("pasta").__version__, "log_time": opts.log_time}
+        logger = RunLogger(opts.log, config_yaml=to_yaml(session.cfg), metadata=meta, clock=opts.log_time)
     try:
         if logger is not None:  # versions, CPU and Taichi settings, so a run can be compared across machines
             logger.add_metadata(PROVENANCE_RECORD, provenance(sim_config=session.task.sim_config))
-        out = session.episode(seed, logger=logger, sim=sim)
+        with planning_bar():  # on a terminal only
+            out = session.episode(seed, logger=logger, sim=sim)
     except BaseException as exc:  # the log records why the run ended (status "failed"), then the error goes on
         if logger is not None:
             logger.close(error=exc)

@@ -13,13 +13,16 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from pasta.config.run import CheckConfig, ExecuteConfig, PerceptionConfig
+from pasta.core import progress
 from pasta.core.errors import InputError, PastaError, PluginRuntimeError, UnreachableGoalError
 from pasta.core.plan import Plan
 from pasta.execute.executor import ExecutionResult, execute_plan
@@ -287,10 +290,27 @@ def run_episode(sim: Any, goal: np.ndarray, *, planner: Any, skills: Sequence[An
                 cfg: ExecuteConfig | None = None, perception: PerceptionConfig | None = None,
                 check: CheckConfig | None = None, planner_name: str = "", emd_points: int = 500, emd_seed: int = 0,
                 logger: Any = None) -> Episode:
-    """Plan from ``sim``'s current observation to ``goal (G, 3)`` (:func:`perceive_and_plan`) and execute."""
-    perceived = perceive_and_plan(sim.observe().dough, goal, planner=planner, skills=skills, encoder=encoder,
-                                  cost=cost, horizon=horizon, seed=seed, skeleton=skeleton, perception=perception,
-                                  check=check, planner_name=planner_name)
+    """Plan from ``sim``'s current observation to ``goal (G, 3)`` (:func:`perceive_and_plan`) and execute.
+    ``logger`` (a :class:`pasta.io.RunLogger`) records the planner's progress on ``/planner/progress`` too."""
+    with progress.listening(_progress_logger(logger, sim)) if logger is not None else nullcontext():
+        perceived = perceive_and_plan(sim.observe().dough, goal, planner=planner, skills=skills, encoder=encoder,
+                                      cost=cost, horizon=horizon, seed=seed, skeleton=skeleton, perception=perception,
+                                      check=check, planner_name=planner_name)
     result = execute_plan(sim, perceived.plan, skills={s.name: s for s in skills}, encoder=encoder, goal=goal,
                           cfg=cfg, perception=perception, emd_points=emd_points, emd_seed=emd_seed, logger=logger)
     return Episode(perceived, result)
+
+
+def _progress_logger(logger: Any, sim: Any) -> Any:
+    """A progress listener that writes each report to ``/planner/progress`` at the simulator's current time
+    (with ``clock=wall`` the logger stamps the wall clock instead, so planning spans its real length)."""
+    from pasta.io import step_time_ns
+
+    t = step_time_ns(sim.step_count, sim.cfg.dt * sim.cfg.substeps)
+
+    def write(event: progress.Progress) -> None:
+        logger.planner_progress(t, {"stage": event.stage, "iteration": event.done, "iterations": event.total,
+                                    **{k: v for k, v in event.info.items()
+                                       if isinstance(v, str) or (isinstance(v, (int, float)) and math.isfinite(v))}})
+
+    return write

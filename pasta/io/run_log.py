@@ -21,6 +21,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import time
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
@@ -55,6 +56,8 @@ SIM_CONFIG = "sim_config.json"
 RUN_METADATA = "run"
 RUN_STATUS = "status"  # metadata record written on close: {"status": "complete" | "failed", "error": ...}
 PARTIAL_SUFFIX = ".partial"
+#: what a message's log time is: the simulation time the caller passes, or the wall clock (:class:`RunLogger`)
+CLOCKS = ("sim", "wall")
 
 
 def partial_path(path: str | os.PathLike[str]) -> Path:
@@ -113,6 +116,10 @@ class RunLogger:
     with dotted keys and values turned into strings; stored as the metadata record ``"run"``.
     ``chunk_size``: bytes of uncompressed messages per chunk; a crash loses at most the open chunk
     (call :meth:`flush` to close it early).
+    ``clock``: ``sim`` (default) stamps every message with the time the caller passes (simulation time: the
+    same run gives the same bytes); ``wall`` stamps it with the wall-clock time since the logger was created,
+    so planning and slow steps take their real length on a viewer's timeline (the file is then not
+    byte-reproducible).
     """
 
     def __init__(
@@ -122,7 +129,12 @@ class RunLogger:
         metadata: Mapping[str, Any] | None = None,
         *,
         chunk_size: int = 1024 * 1024,
+        clock: str = "sim",
     ) -> None:
+        if clock not in CLOCKS:
+            raise ValueError(f"clock must be one of {', '.join(CLOCKS)}, got {clock!r}")
+        self.clock = clock
+        self._t0 = time.monotonic_ns()
         self.path = Path(path)
         if self.path.is_dir():  # found now, not at the rename after the whole run
             raise IsADirectoryError(errno.EISDIR, "run log target is a directory", str(self.path))
@@ -239,6 +251,11 @@ class RunLogger:
         self._channels[topic] = (cid, schema_name)
         return cid
 
+    def _time(self, t_ns: Any) -> int:
+        """The log time of a message the caller stamps ``t_ns`` (checked): itself, or the wall clock."""
+        t = _check_time(t_ns)
+        return time.monotonic_ns() - self._t0 if self.clock == "wall" else t
+
     def _write(self, cid: int, t_ns: int, data: bytes) -> None:
         self._last_t = max(self._last_t, t_ns)
         seq = self._sequence.get(cid, 0)
@@ -262,7 +279,7 @@ class RunLogger:
         """Log ``points`` (N, 3) (stored as float32) with optional ``colors`` (N, 4) uint8 RGBA as a
         ``foxglove.PointCloud`` in frame ``world``."""
         self._check_open()
-        t = _check_time(t_ns)
+        t = self._time(t_ns)
         self._write_proto(topic, t, S.encode_point_cloud(t, points, colors))
 
     def entities(self, topic: str, t_ns: int, entities: Sequence[Any]) -> None:
@@ -270,14 +287,14 @@ class RunLogger:
         coloured with palette colour i and tagged with a uint32 ``entity`` field = i (Foxglove can
         colour by that field too). Read back as the same list of float32 arrays."""
         self._check_open()
-        t = _check_time(t_ns)
+        t = self._time(t_ns)
         self._write_proto(topic, t, S.encode_entities(t, list(entities)))
 
     def tools(self, topic: str, t_ns: int, tools: Sequence[ToolPrimitive]) -> None:
         """Log tool poses as a ``foxglove.SceneUpdate`` (one entity per tool, id = tool name).
         Tools shown earlier on ``topic`` but absent now are deleted from the scene."""
         self._check_open()
-        t = _check_time(t_ns)
+        t = self._time(t_ns)
         tools = list(tools)
         shown = self._tool_names.setdefault(topic, [])
         now = [tool.name for tool in tools if isinstance(tool, ToolPrimitive)]
@@ -289,7 +306,7 @@ class RunLogger:
         """Log a text line as ``foxglove.Log``; ``level`` is a name (``"info"``, ``"warning"`` ...),
         a Foxglove level code 0-5 or a stdlib ``logging`` level (10-50)."""
         self._check_open()
-        t = _check_time(t_ns)
+        t = self._time(t_ns)
         self._write_proto(topic, t, S.encode_log(t, level, text, name))
 
     def json(
@@ -304,7 +321,7 @@ class RunLogger:
         schema name) is used when the topic is first seen; default ``{"type": "object"}`` titled
         ``pasta.json<topic>``. Numpy values are converted to lists/numbers, non-finite floats to null."""
         self._check_open()
-        t = _check_time(t_ns)
+        t = self._time(t_ns)
         data = S.encode_json(obj)
         if schema is None:
             schema = S.generic_schema("pasta.json" + topic.replace("/", "."))
@@ -354,7 +371,7 @@ class RunLogger:
         if name in self._attachments:
             raise ValueError(f"attachment {name!r} already written to {self.path}")
         self._attachments.add(name)
-        t = _check_time(t_ns)
+        t = self._time(t_ns)
         self._writer.add_attachment(create_time=t, log_time=t, name=name, media_type=media_type, data=bytes(data))
 
     def attach_json(self, name: str, obj: Mapping[str, Any], *, t_ns: int = 0) -> None:

@@ -468,10 +468,13 @@ PROGRESS_SCHEMA: dict[str, Any] = {
     "description": "Planner optimisation progress.",
     "type": "object",
     "properties": {
+        "stage": _STR,
         "iteration": _INT,
+        "iterations": _INT,
         "best_score": _NUM,
         "mean_score": _NUM,
         "samples": _INT,
+        "evaluations": _INT,
         "sequence": {"type": "array", "items": _STR},
     },
 }

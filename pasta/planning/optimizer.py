@@ -21,6 +21,7 @@ from typing import Any
 import torch
 
 from pasta.core import PlanningProblem
+from pasta.core import progress
 from pasta.core.errors import ConfigError
 from pasta.planning.batch import CandidateBatch, FrozenMatching, evaluate, free_feasible, sample_candidates
 from pasta.planning.clearance import Clearance
@@ -120,7 +121,8 @@ def search(
                                   generator, fixed=fixed, attention=config.attention, sequence_seed=sequence_seed)
         drawn = batch.size  # before halving shrinks the batch
         t_b = time.perf_counter()
-        opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance)
+        opt = _Optimiser(problem, batch, config, generator, method, elite_fraction, min_std, clearance,
+                         stage="refine" if refining else "optimise")
         scores = opt.run()
         timings["sample"] += t_b - t_a
         timings["optimise"] += time.perf_counter() - t_b
@@ -163,8 +165,9 @@ def _refine(result: SearchResult, sequences: Sequence[Sequence[str]], count: int
 
 class _Optimiser:
     def __init__(self, problem, batch: CandidateBatch, cfg: LatentPlannerConfig, gen, method, elite_fraction, min_std,
-                 clearance: Clearance | None = None):
+                 clearance: Clearance | None = None, stage: str = "optimise"):
         self.problem, self.batch, self.cfg, self.gen, self.method = problem, batch, cfg, gen, method
+        self.stage = stage  # what progress reports call this round (pasta.core.progress)
         self.clearance = clearance
         self.elite_fraction, self.min_std = elite_fraction, min_std
         self.skills, self.cost, self.encoder = problem.skill_map, problem.cost, problem.encoder
@@ -207,6 +210,7 @@ class _Optimiser:
             last = it == iters
             xs = [x.detach().requires_grad_(not last) for x in lat]
             obj, scores = self._objective(xs, grad=not last)
+            self._report(it, iters, scores)
             if last:
                 break
             grads = torch.autograd.grad(-sum(o.sum() for o in obj), xs, allow_unused=True)
@@ -227,6 +231,13 @@ class _Optimiser:
                 v = [x[k] for x, k in zip(v, keep)]
         self._store(lat)
         return scores
+
+    def _report(self, it: int, iters: int, scores: list[torch.Tensor]) -> None:
+        """Iteration ``it`` of ``iters`` done: the candidates left and the best score so far, to whoever listens."""
+        if progress.active():
+            best = max((float(s.max()) for s in scores if s.numel()), default=float("nan"))
+            progress.report(self.stage, it, iters, samples=self.batch.size, evaluations=self.evaluations,
+                            best_score=best)
 
     def _halve(self, obj: list[torch.Tensor]) -> list[torch.Tensor]:
         """Keep the better half (all sequences together) plus each sequence's best few; shrink the batch."""
@@ -261,6 +272,7 @@ class _Optimiser:
         scores: list[torch.Tensor] = []
         for it in range(self.cfg.iterations + 1):
             _, scores = self._objective(lat, grad=False)
+            self._report(it, self.cfg.iterations, scores)
             if it == self.cfg.iterations:
                 break
             new = []

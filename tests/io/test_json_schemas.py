@@ -40,7 +40,7 @@ def test_every_json_message_validates_against_its_channels_schema(run_log):
         jsonschema.Draft202012Validator.check_schema(doc)
         jsonschema.validate(json.loads(message.data), doc)  # raises, naming the field, on a mismatch
         seen[channel.topic] = seen.get(channel.topic, 0) + 1
-    assert {"/plan", "/actions", "/step", "/metrics"} <= set(seen), seen
+    assert {"/plan", "/actions", "/step", "/metrics", "/planner/progress"} <= set(seen), seen
 
 
 @pytest.mark.sim
@@ -54,3 +54,31 @@ def test_every_point_cloud_has_a_full_pose(run_log):
             assert msg.HasField("pose") and msg.pose.HasField("position") and msg.pose.HasField("orientation"), channel.topic
             clouds += 1
     assert clouds > 10
+
+
+@pytest.mark.sim
+def test_planning_progress_is_logged_and_wall_clock_log_time_spreads_it(run_log, tmp_path, capsys):
+    """The planner's progress is a channel; with log_time=wall the timeline shows planning's real length, and
+    the run still re-simulates exactly (replay --verify follows the actions, not their times)."""
+    from pasta.io import RunReader
+
+    sim_times = [t for t, _ in RunReader(run_log).messages("/planner/progress")]
+    assert len(sim_times) >= 10 and len(set(sim_times)) == 1  # simulation time stands still while it plans
+    wall = tmp_path / "wall.mcap"
+    assert main([*RUN, f"log={wall}", "log_time=wall"]) == 0
+    reader = RunReader(wall)
+    assert reader.metadata()["log_time"] == "wall"
+    progress = list(reader.messages("/planner/progress"))
+    times = [t for t, _ in progress]
+    assert times == sorted(times) and times[-1] - times[0] > 0  # spread over the planning time
+    stages = {m["stage"] for _, m in progress}
+    assert "optimise" in stages and all(m["iteration"] <= m["iterations"] for _, m in progress)
+    (t_plan, _), = list(reader.messages("/plan"))
+    assert t_plan >= times[-1]  # the plan is logged after its search
+    assert main(["replay", str(wall), "--verify"]) == 0
+    assert ": OK" in capsys.readouterr().out
+
+
+def test_log_time_is_checked(capsys):
+    assert main([*RUN, "log_time=walltime"]) == 2
+    assert "log_time" in capsys.readouterr().err
