@@ -47,6 +47,7 @@ STEP = "/step"  # json pasta.StepResult
 METRICS = "/metrics"  # json pasta.Metrics
 PROGRESS = "/planner/progress"  # json pasta.PlannerProgress
 LOG = "/log"  # foxglove.Log
+TF = "/tf"  # foxglove.FrameTransform: the world (y up) under a z-up root, written once at the start
 
 # Well-known attachments.
 CONFIG_ATTACHMENT = "config.yaml"
@@ -171,6 +172,7 @@ class RunLogger:
             self.add_metadata(RUN_METADATA, metadata)
         if config_yaml is not None:
             self.attach(CONFIG_ATTACHMENT, config_yaml.encode("utf-8"), "application/yaml")
+        self._write_proto(TF, 0, S.encode_world_upright(0))  # viewers show the y-up world upright
         self._stream.flush()  # header, metadata and config reach the disk before the run starts
 
     # ---------------------------------------------------------------- lifecycle

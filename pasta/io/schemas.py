@@ -25,6 +25,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.Log_pb2 import Log
 from foxglove_schemas_protobuf.PackedElementField_pb2 import PackedElementField
 from foxglove_schemas_protobuf.PointCloud_pb2 import PointCloud
@@ -33,6 +34,9 @@ from foxglove_schemas_protobuf.SceneEntityDeletion_pb2 import SceneEntityDeletio
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
 
 WORLD_FRAME = "world"
+#: the root frame of a run log: z up, as viewers (Foxglove, Lichtblick, Rerun) show by default; ``world`` (y up,
+#: the simulator's frame) hangs below it, turned +90 degrees about x, so the dough appears upright unasked
+Z_UP_FRAME = "z_up"
 
 POINT_CLOUD_SCHEMA = "foxglove.PointCloud"
 SCENE_UPDATE_SCHEMA = "foxglove.SceneUpdate"
@@ -344,6 +348,17 @@ def level_code(level: int | str) -> int:
             return std[code]
         raise ValueError(f"unknown log level {level!r}")
     return code
+
+
+def encode_world_upright(t_ns: int = 0) -> FrameTransform:
+    """The transform from :data:`WORLD_FRAME` (y up) to :data:`Z_UP_FRAME` (z up): +90 degrees about x, which
+    takes the world's y axis to z and its z axis to -y."""
+    msg = FrameTransform(parent_frame_id=Z_UP_FRAME, child_frame_id=WORLD_FRAME)
+    _stamp(msg.timestamp, t_ns)
+    msg.translation.SetInParent()
+    half = math.sqrt(0.5)
+    msg.rotation.x, msg.rotation.y, msg.rotation.z, msg.rotation.w = half, 0.0, 0.0, half
+    return msg
 
 
 def encode_log(t_ns: int, level: int | str, text: str, name: str = "pasta") -> Log:

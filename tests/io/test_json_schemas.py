@@ -82,3 +82,22 @@ def test_planning_progress_is_logged_and_wall_clock_log_time_spreads_it(run_log,
 def test_log_time_is_checked(capsys):
     assert main([*RUN, "log_time=walltime"]) == 2
     assert "log_time" in capsys.readouterr().err
+
+
+def test_the_log_carries_the_transform_that_shows_the_world_upright(tmp_path):
+    """A viewer's default is z up; the simulator's world is y up: /tf hangs `world` under a z-up root."""
+    import numpy as np
+    from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+
+    from pasta.io import RunLogger
+
+    path = tmp_path / "r.mcap"
+    with RunLogger(path) as log:
+        log.point_cloud("/dough", 0, np.zeros((3, 3), np.float32))
+    (tf,) = [FrameTransform.FromString(m.data) for s, c, m in _messages(path) if c.topic == "/tf"]
+    assert (tf.parent_frame_id, tf.child_frame_id) == ("z_up", "world")
+    q = tf.rotation
+    w, v = q.w, np.array([q.x, q.y, q.z])
+    up = np.array([0.0, 1.0, 0.0])  # the world's up
+    rotated = up + 2 * w * np.cross(v, up) + 2 * np.cross(v, np.cross(v, up))
+    assert np.allclose(rotated, [0.0, 0.0, 1.0])  # is the viewer's up

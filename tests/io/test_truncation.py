@@ -108,7 +108,7 @@ def test_a_flipped_byte_at_the_end_is_corrupt_not_truncated_and_recover_says_wha
     assert r.count("/dough") == len(clouds)  # every message is in the whole data section
     assert "skipped the summary and footer" in r.recover_error
     assert replay.run(_parse([str(bad), "--recover"])) == 0
-    assert "warning: recovered 60 messages from a damaged file; the data section is whole" in capsys.readouterr().err
+    assert "warning: recovered 61 messages from a damaged file; the data section is whole" in capsys.readouterr().err
 
 
 def test_recover_of_a_cut_file_says_how_many_bytes_it_skipped(tmp_path):
