@@ -204,6 +204,7 @@ class DemoWriter:
                                                sort_keys=True))
         arrays["final_dough"] = sim.observe().dough.astype(np.float32)
         arrays["dough_index"] = obs.dough_index.astype(np.int64)
+        check_changed(skill, obs.dough, arrays["final_dough"], index)
         return arrays
 
     def write(self, index: int) -> tuple[int, float]:
@@ -213,6 +214,27 @@ class DemoWriter:
         arrays = self.generate(index)
         write_npz(demo_path(self.cfg.out, self.cfg.skill, index), arrays)
         return int(arrays["action"].shape[0]), time.perf_counter() - t0
+
+
+def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int, points: int = 500) -> float:
+    """The Chamfer distance (m^2) between the dough before and after a demonstration; raises :class:`InputError`
+    when it is below the distance at which pasta takes a piece for its goal (the skill's ``at_goal``, else
+    ``perception.unchanged_threshold``): such a step would never be planned or run, so its demonstrations
+    would teach nothing."""
+    from pasta.core.errors import InputError
+    from pasta.core.matching import UNCHANGED_THRESHOLD
+    from pasta.core.metrics import chamfer, sample_points
+
+    limit = float(skill.at_goal if getattr(skill, "at_goal", None) is not None else UNCHANGED_THRESHOLD)
+    rng = np.random.default_rng(index)  # its own stream: the demonstration's draws are unchanged
+    moved = float(chamfer(sample_points(before, points, rng), sample_points(after, points, rng)))
+    if moved < limit:
+        source = "its at_goal" if getattr(skill, "at_goal", None) is not None else "perception.unchanged_threshold"
+        raise InputError(f"skill '{skill.name}' demo {index}: its expert changed the dough by a Chamfer distance of "
+                         f"{moved:.2e} m^2, below {limit:g} ({source}), the distance at which pasta takes a piece for "
+                         "its goal: such a step is never planned or run. Make the expert's effect larger (its "
+                         "parameters or its demo_scene)")
+    return moved
 
 
 def variant_record(cls: type, variant: str) -> dict[str, Any]:

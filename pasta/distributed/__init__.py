@@ -241,6 +241,15 @@ def run_test_hooks(hooks: Mapping[str, str], item: Any, attempt: int) -> None:
             os.kill(os.getpid(), _TEST_SIGNALS[name])
 
 
+def job_error(trace: str) -> str:
+    """An item's error from its job's traceback: ``raised Type: message`` (the traceback's last line, so a
+    report's first line says what went wrong), then the traceback."""
+    last = next((line for line in reversed(str(trace).strip().splitlines()) if line.strip()), "an exception")
+    name, sep, message = last.partition(":")
+    name = name.rpartition(".")[2] if " " not in name else name  # pasta.core.errors.InputError -> InputError
+    return f"raised {name}{sep}{message}\n{trace}"
+
+
 def call_job(job: Callable[[Any, Any, int], Any], state: Any, item: Any, attempt: int) -> tuple[str, Any]:
     """``("done", value)`` or ``("error", traceback)``: a job's exception never takes its worker down."""
     try:
@@ -296,7 +305,7 @@ def _in_process(init: Callable, job: Callable, setup: Any, items: list, state: A
     state = init(setup) if state is None else state
     for item in items:
         status, value = call_job(job, state, item, 1)
-        yield Outcome(item, value=value) if status == "done" else Outcome(item, error=f"raised an exception:\n{value}")
+        yield Outcome(item, value=value) if status == "done" else Outcome(item, error=job_error(value))
 
 
 def warn(prog: str, text: str) -> None:

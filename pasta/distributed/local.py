@@ -35,7 +35,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from pasta.distributed import (STARTUP_S, BackendError, Outcome, apply_env, attempts_error, call_job, due_time,
-                               overdue_reason, run_test_hooks, seconds, shipped_env, wait_timeout, warn, worker_state)
+                               job_error, overdue_reason, run_test_hooks, seconds, shipped_env, wait_timeout, warn,
+                               worker_state)
 
 #: worker deaths outside any item (e.g. while the simulator starts) that end the run
 MAX_IDLE_DEATHS = 3
@@ -154,7 +155,7 @@ def run_local(init: Callable, job: Callable, setup: Any, items: list, *, workers
             results.append(Outcome(msg[1], value=msg[2], attempts=attempts.get(msg[1], 1)))
         elif kind == "error":
             w.busy, w.current, w.due = False, None, math.inf
-            results.append(Outcome(msg[1], error=f"raised an exception:\n{msg[2]}", attempts=attempts.get(msg[1], 1)))
+            results.append(Outcome(msg[1], error=job_error(msg[2]), attempts=attempts.get(msg[1], 1)))
         elif kind == "start_error":
             raise BackendError(f"a worker could not start:\n{msg[1]}")
 

@@ -38,7 +38,7 @@ from typing import Any
 
 from pasta.core.errors import ConfigError
 from pasta.distributed import (RAY_INSTALL, STARTUP_S, BackendConfig, BackendError, Outcome, apply_env, attempts_error,
-                               call_job, due_time, overdue_reason, run_test_hooks, seconds, shipped_env, wait_timeout,
+                               call_job, due_time, job_error, overdue_reason, run_test_hooks, seconds, shipped_env, wait_timeout,
                                warn, worker_state)
 
 _STARTED: list[bool] = []  # whether this process started the Ray instance it uses (then it stops it at exit)
@@ -195,7 +195,7 @@ def _outcomes(ray: Any, init: Callable, job: Callable, setup: Any, items: list, 
         if status == "start_error":
             raise BackendError(f"a Ray worker could not start:\n{value}")
         if status == "error":
-            return Outcome(task.item, error=f"raised an exception:\n{value}", attempts=attempts[task.item])
+            return Outcome(task.item, error=job_error(value), attempts=attempts[task.item])
         return Outcome(task.item, value=value, attempts=attempts[task.item])
 
     def give_up(gen: Any) -> Outcome | None:

@@ -52,10 +52,13 @@ class SkillChoice:
         """One line naming the left-out skills and the commands that train them (``None`` if none)."""
         if not self.left_out:
             return None
+        from pasta.weights import train_into
+
         missing = "; ".join(f"{name}: {', '.join(needs)}" for name, needs in self.left_out.items())
+        out, then = train_into(self.root)
         return (f"warning: skills without trained weights under {self.root} are left out: "
                 f"{', '.join(self.left_out)} ({missing}); or `pasta pipeline skills={','.join(self.left_out)} "
-                f"out={self.root}` trains everything they need")
+                f"out={out}` trains everything they need{then}")
 
 
 def parse_skill_names(value: str | Sequence[str] | None) -> list[str]:
@@ -122,21 +125,25 @@ def _missing(cls: type, root: Path, *, policy: bool, flat: bool) -> list[str]:
     from pasta.nn import FEASIBILITY_DIR
     from pasta.policy import POLICY_DIR
 
+    from pasta.weights import train_into
+
     name = cls.spec.name
+    out, then = train_into(root)
     needs = []
     if flat:
         from pasta.nn.flat import flat_hint
 
         where = root / "flat" / FEASIBILITY_DIR / name
         if not checkpoint_exists(where):
-            needs.append(f"Flat 3D feasibility network ({where}): train with {flat_hint('feasibility', root / 'flat', name)}")
+            needs.append(f"Flat 3D feasibility network ({where}): train with "
+                         f"{flat_hint('feasibility', Path(out) / 'flat', name)}{then}")
     elif needs_feasibility_network(cls):
         where = root / FEASIBILITY_DIR / name
         if not checkpoint_exists(where):
             needs.append(f"feasibility network ({where}): train with "
-                         f"`pasta train feasibility data=DIR out={root} skill={name}`")
+                         f"`pasta train feasibility data=DIR out={out} skill={name}`{then}")
     if policy:
         where = root / POLICY_DIR / name
         if not checkpoint_exists(where):
-            needs.append(f"policy ({where}): train with `pasta train policy data=DIR out={root} skill={name}`")
+            needs.append(f"policy ({where}): train with `pasta train policy data=DIR out={out} skill={name}`{then}")
     return needs

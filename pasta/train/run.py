@@ -89,7 +89,13 @@ def _load_encoder(out: Path, path: str, flat: bool = False):
     from pasta.nn.config import PointVAEEncoderConfig
     from pasta.nn.encoders import PointVAEEncoder
 
-    return PointVAEEncoder(PointVAEEncoderConfig(weights=path or str(out / VAE_DIR)))
+    if not path:  # the models root's own VAE, else the shipped one (a new skill trains on the shipped latents)
+        from pasta.weights import module_dir
+
+        path = str(module_dir(out, VAE_DIR))
+        if Path(path) != out / VAE_DIR:
+            print(f"note: {out} has no trained VAE; encoding with the shipped one ({path})", file=sys.stderr)
+    return PointVAEEncoder(PointVAEEncoderConfig(weights=path))
 
 
 def _encode(demos: list, encoder: Any, cfg: Any, seed: int, *, pairs_only: bool = False) -> list:

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from pasta.core.files import write_bytes
 
-__all__ = ["ROOT", "bundle", "models_root", "shipped", "weight_overrides"]
+__all__ = ["ROOT", "bundle", "models_root", "module_dir", "shipped", "train_into", "weight_overrides"]
 
 #: the directory of the shipped weights
 ROOT = Path(__file__).resolve().parent
@@ -33,11 +33,31 @@ def models_root(models: str | Path | None = None) -> Path:
 
 
 def weight_overrides(root: str | Path, given: list[str]) -> list[str]:
-    """``encoder.weights=ROOT/vae`` and ``cost_model.weights=ROOT/cost``, except for keys already in ``given``
-    (``key=value`` items): the run config's weights under one models root."""
+    """``encoder.weights=ROOT/vae`` and ``cost_model.weights=ROOT/cost`` (:func:`module_dir`: the shipped ones when
+    the root has none), except for keys already in ``given`` (``key=value`` items): the run config's weights
+    under one models root."""
     keys = {item.partition("=")[0].strip() for item in given}
-    return [f"{key}={Path(root) / sub}" for key, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost"))
+    return [f"{key}={module_dir(root, sub)}" for key, sub in (("encoder.weights", "vae"), ("cost_model.weights", "cost"))
             if key not in keys]
+
+
+def module_dir(root: str | Path, sub: str) -> Path:
+    """``ROOT/sub`` when it holds a trained module, else the shipped ``sub`` when that does: a models root that
+    trains only a new skill's feasibility (and policy) plans with the shipped VAE and cost, copying nothing.
+    Otherwise ``ROOT/sub`` (so a missing module is named where the user put it)."""
+    own = Path(root) / sub
+    if (own / "model.safetensors").is_file() or not (ROOT / sub / "model.safetensors").is_file():
+        return own
+    return ROOT / sub
+
+
+def train_into(root: str | Path) -> tuple[str, str]:
+    """``(out=, extra)`` for a message that tells how to train a module missing under models root ``root``: the
+    root itself, but never the shipped weights inside the installed package (then ``models`` and the
+    ``models=models`` a run needs to use it)."""
+    if Path(root).resolve() == ROOT.resolve():
+        return "models", " (then run with models=models)"
+    return str(root), ""
 
 
 def shipped(root: str | Path | None = None) -> list[str]:

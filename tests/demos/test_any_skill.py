@@ -76,6 +76,13 @@ class NudgeSkill(PushLeftSkill):
         return {"split_x": float(piece[:, 0].min()) - 1.0, "travel": float(rng.uniform(0.04, 0.08))}
 
 
+class StillSkill(NudgeSkill):
+    spec = SkillSpec("still", n_in=1, n_out=1, tool="pusher", description="an expert that leaves its piece as it is")
+
+    def sample_expert_params(self, piece, rng):
+        return {"split_x": float(piece[:, 0].min()) - 1.0, "travel": 0.0}
+
+
 class LazySkill(Skill):
     spec = SkillSpec("lazy", n_in=1, n_out=1, tool="pusher", description="no expert, no demonstrations")
 
@@ -84,6 +91,7 @@ class LazySkill(Skill):
 def pasta_register_skills(register):
     register(spec=MergeSkill.spec, factory="merge_plugin:MergeSkill")
     register(spec=NudgeSkill.spec, factory="merge_plugin:NudgeSkill")
+    register(spec=StillSkill.spec, factory="merge_plugin:StillSkill")
     register(spec=LazySkill.spec, factory="merge_plugin:LazySkill")
 '''
 
@@ -166,3 +174,16 @@ def test_two_to_one_and_one_to_one_plugin_skills_demos_and_training(merge_plugin
         assert f.shape == (3,) and bool(((f >= 0) & (f <= 1)).all())
         policy = json.loads((out / "policy" / name / "metrics.json").read_text())
         assert policy["skill"] == name and policy["train_demos"] == 1
+
+
+@pytest.mark.sim
+def test_demonstrations_that_leave_the_piece_at_its_start_are_refused_with_the_threshold(merge_plugin, tmp_path, capsys):
+    """A step that changes its piece less than pasta's "this piece is its goal" distance is never planned or
+    run: its demonstrations are refused, naming the distance and the threshold (issue 40)."""
+    assert main(["demos", "skill=still", "num=1", f"out={tmp_path}", "workers=0", "n_particles=1500",
+                 "obs_points=300"]) == 1
+    err = capsys.readouterr().err
+    assert "demo 0 (seed=0 skill=still index=0): raised InputError: skill 'still' demo 0: its expert changed the " \
+           "dough by a Chamfer distance of" in err
+    assert "below 0.0005 (perception.unchanged_threshold)" in err and "Traceback" in err
+    assert not list((tmp_path / "still").glob("demo_*.npz"))

@@ -99,3 +99,23 @@ def test_require_says_why_a_needed_skill_is_missing(tmp_path):
     given = choose_skills("cut", tmp_path)
     with pytest.raises(ConfigError, match="'push': not in skills="):
         given.require(("cut", "push"), "skeleton=")
+
+
+def test_no_message_suggests_training_into_the_installed_package(tmp_path):
+    """A skill left out of the shipped root (a plugin installed without weights, as the test's analytic
+    skills) is to be trained into a root of the user's, used with models=, never into pasta/weights."""
+    plugins = discover(extra={"analytic": AnalyticPlugin()})
+    choice = choose_skills(None, ROOT, plugins=plugins, policy=True)  # no policy ships for them
+    assert "split" in choice.left_out
+    line = choice.warning()
+    assert f"out={ROOT}" not in line and "out=models" in line and "(then run with models=models)" in line
+
+
+def test_a_root_that_trains_only_a_new_skill_uses_the_shipped_vae_and_cost(tmp_path):
+    from pasta.weights import module_dir, weight_overrides
+
+    root = models(tmp_path, "feasibility/press")
+    assert module_dir(root, "vae") == ROOT / "vae" and module_dir(root, "cost") == ROOT / "cost"
+    assert weight_overrides(root, []) == [f"encoder.weights={ROOT / 'vae'}", f"cost_model.weights={ROOT / 'cost'}"]
+    own = models(tmp_path / "own", "vae", "feasibility/press")
+    assert module_dir(own, "vae") == own / "vae" and module_dir(own, "cost") == ROOT / "cost"
