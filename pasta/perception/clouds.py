@@ -137,11 +137,9 @@ def read_cloud(path: str | Path, name: str = "cloud", *, max_file_points: int = 
     suffix = p.suffix.lower()
     try:
         if suffix == ".npy":
-            _check_npy_magic(p, name)
-            header = np.load(p, mmap_mode="r", allow_pickle=False)  # reads the shape, not the data
-            count = int(np.prod(header.shape[:-1])) if header.ndim else 0
+            shape = _npy_shape(p, name)  # reads the header, not the data
+            count = int(np.prod(shape[:-1])) if shape else 0
             _check_file_size(count, name, p, max_file_points)
-            del header
             arr = np.load(p, allow_pickle=False)
         elif suffix == ".ply":
             arr = read_ply(p, name, max_file_points=max_file_points)
@@ -174,14 +172,25 @@ def read_cloud(path: str | Path, name: str = "cloud", *, max_file_points: int = 
     return LoadedCloud(flat, np.ones(len(flat), bool), (len(flat),))
 
 
-def _check_npy_magic(path: Path, name: str) -> None:
-    """A ``.npy`` file starts with ``\\x93NUMPY``; without it numpy would try to unpickle the bytes, and its
-    error would call any file "pickled data"."""
+def _npy_shape(path: Path, name: str) -> tuple[int, ...]:
+    """The array shape a ``.npy`` header declares. A file without the ``\\x93NUMPY`` magic is not a .npy (numpy
+    would try to unpickle its bytes, and its error would call any file "pickled data"); an object array is
+    named as one (reading it would need pickle)."""
     with open(path, "rb") as fh:
-        head = fh.read(6)
-    if head != b"\x93NUMPY":
-        raise InputError(f"{name} file {str(path)!r} is not a .npy file (it does not start with the NumPy magic "
-                         "bytes \\x93NUMPY): save the cloud with numpy.save, or give a .ply")
+        if fh.read(6) != b"\x93NUMPY":
+            raise InputError(f"{name} file {str(path)!r} is not a .npy file (it does not start with the NumPy magic "
+                             "bytes \\x93NUMPY): save the cloud with numpy.save, or give a .ply")
+        fh.seek(0)
+        version = np.lib.format.read_magic(fh)
+        if version not in ((1, 0), (2, 0)):  # a newer format: numpy reads its header (mapped, not loaded)
+            header = np.load(path, mmap_mode="r", allow_pickle=False)
+            return tuple(header.shape)
+        read = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _fortran, dtype = read(fh)
+    if dtype.hasobject:
+        raise InputError(f"{name} file {str(path)!r} holds pickled Python objects (dtype object); pasta reads numeric "
+                         "arrays only, without pickle")
+    return tuple(shape)
 
 
 def _check_file_size(count: int, name: str, path: Path, limit: int) -> None:
