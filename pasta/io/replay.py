@@ -267,8 +267,10 @@ def export_frames(
         if not frames:
             continue
         box = view_box([f[1] for f in frames], up=up, side_ratio=0.35)  # room for a tool coming down
-        legend: dict[str, tuple[float, ...]] = {}  # every tool a frame shows in the box: one legend for all
-        for _t, prims in track:
+        legend: dict[str, tuple[float, ...]] = {}  # every tool the frames show in the box: one legend for all
+        for t_tools, prims in track:
+            if t_tools > frames[-1][0]:
+                break
             for p in prims:
                 if base_name(p.name) not in legend and within(p, *box):
                     legend[base_name(p.name)] = tuple(p.color)
