@@ -278,7 +278,7 @@ def export_frames(
         for k, (t, pts, colors) in enumerate(frames):
             fig = _frame_figure(topic, t, pts, colors, _tools_at(track, t), box, up, legend)
             png = out_dir / f"{_slug(topic)}_{k:05d}.png"
-            save_with(png, lambda fh: fig.savefig(fh, format="png"))
+            save_with(png, lambda fh, fig=fig: fig.savefig(fh, format="png"))
             pngs.append(png)
         images = [Image.open(p).convert("RGB") for p in pngs]
         gif = out_dir / f"{_slug(topic)}.gif"

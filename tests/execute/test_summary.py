@@ -1,11 +1,17 @@
-"""save_summary: PNG output for a toy episode and input validation."""
+"""save_summary: PNG output for a toy episode, input validation, and what the figure shows (legend, planned vs
+executed steps, equal-scale views fitted to the dough, tools in their colours)."""
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from matplotlib.colors import to_rgba
 from matplotlib.image import imread
+from matplotlib.patches import Polygon
 
 from pasta.core.errors import InputError
-from pasta.execute.summary import save_summary
+from pasta.execute.summary import ExecutedStep, build_summary, save_summary, summary_steps
+from pasta.io import ToolPrimitive
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
@@ -81,13 +87,6 @@ def test_bad_subgoals_names_argument(tmp_path, subgoals):
 
 
 # ------------------------------------------------------------------ what the figure shows
-from types import SimpleNamespace  # noqa: E402
-
-from matplotlib.colors import to_rgba  # noqa: E402
-from matplotlib.patches import Polygon  # noqa: E402
-
-from pasta.execute.summary import ExecutedStep, build_summary, summary_steps  # noqa: E402
-from pasta.io import ToolPrimitive  # noqa: E402
 
 KNIFE_RGBA = to_rgba("tab:red")
 

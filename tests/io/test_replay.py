@@ -69,7 +69,10 @@ def test_export_draws_tools_as_shapes_in_their_colours(tmp_path):
     img = imread(png)[..., :3]
     height = img.shape[0]
     body = img[: int(0.88 * height)]  # the views; the legend at the bottom left out
-    near = lambda rgb: np.abs(body - np.array(rgb)).max(-1) < 0.1  # noqa: E731
+
+    def near(rgb):
+        return np.abs(body - np.array(rgb)).max(-1) < 0.1
+
     rows, cols = np.nonzero(near(green[:3]))
     assert len(cols) > 20
     assert np.all(cols > 0.6 * img.shape[1])  # the knife is at the right end of the dough, in both views
