@@ -162,15 +162,13 @@ def print_skill_warning(session: Any) -> None:
 
 
 def write_summary(path: str | Path, session: Any, out: Any) -> Path:
-    """The episode's PNG: initial, each step's decoded sub-goal pieces, final against goal."""
-    from pasta.execute.summary import save_summary
+    """The episode's PNG: initial, each plan step's decoded sub-goal under the dough observed after it ran (the
+    improvement after it, the tool where it ended), final against goal."""
+    from pasta.execute.summary import save_summary, summary_steps
 
     inst = session.task.instance(out.seed)
-    steps = []
-    if out.plan is not None:
-        for h, step in enumerate(out.plan.steps):
-            steps.append((f"{h + 1}. {step.skill} (f={step.feasibility:.2f})",
-                          session.encoder.decode_clouds(step.subgoal, 400)))
+    steps, executed, start_tools, end_tools = summary_steps(out.plan, out.result, session.encoder)
     title = (f"{session.task.name} seed {out.seed}, {session.method}: normalised improvement {out.improvement:.3f} "
              f"({'success' if out.success else 'failure'})")
-    return save_summary(path, initial=inst.init_points, goal=inst.goal, final=out.final_dough, subgoals=steps, title=title)
+    return save_summary(path, initial=inst.init_points, goal=inst.goal, final=out.final_dough, subgoals=steps,
+                        title=title, executed=executed, start_tools=start_tools, end_tools=end_tools)

@@ -38,7 +38,7 @@ from pasta.execute.goals import step_goal
 from pasta.execute.runlog import ExecutionLog
 from pasta.execute.schedule import attend, next_step
 
-__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "execute_plan", "step_monitor"]
+__all__ = ["ExecuteConfig", "ExecutionResult", "StepInfo", "StepSnapshot", "execute_plan", "step_monitor"]
 
 @dataclass
 class StepInfo:
@@ -79,8 +79,29 @@ class StepInfo:
 
 
 @dataclass
+class StepSnapshot:
+    """What one executed step left behind, for pictures (``pasta run summary=``).
+
+    Attributes:
+        dough: ``(P, 3)`` float32 observed dough after the step.
+        tools: every tool as :class:`pasta.io.ToolPrimitive` s where it was when the step's motion ended
+            (before parking); empty when the step was skipped.
+        tool: the tool the step drove.
+        path: ``(T+1, 3)`` that tool's centre over the step's (last) run; ``(0, 3)`` when skipped.
+    """
+
+    dough: np.ndarray
+    tools: list[Any] = field(default_factory=list)
+    tool: str = ""
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+
+
+@dataclass
 class ExecutionResult:
-    """The outcome of :func:`execute_plan`: the score, per-step info and the final observed dough ``(P, 3)``."""
+    """The outcome of :func:`execute_plan`: the score, per-step info and the final observed dough ``(P, 3)``.
+
+    ``snapshots`` has one :class:`StepSnapshot` per entry of ``steps``; ``start_tools`` and ``end_tools`` are
+    the tools (:class:`pasta.io.ToolPrimitive`) before the first step and after the last."""
 
     normalized_improvement: float
     emd_initial: float
@@ -89,6 +110,9 @@ class ExecutionResult:
     final_dough: np.ndarray
     diverged: str | None = None
     plans: list[Plan] = field(default_factory=list)
+    snapshots: list[StepSnapshot] = field(default_factory=list)
+    start_tools: list[Any] = field(default_factory=list)
+    end_tools: list[Any] = field(default_factory=list)
 
 
 def step_monitor(cfg: ExecuteConfig, perception: PerceptionConfig) -> Any:
@@ -99,6 +123,16 @@ def step_monitor(cfg: ExecuteConfig, perception: PerceptionConfig) -> Any:
 
     return GoalMonitor(rise=float(cfg.regress_rise), near=float(cfg.regress_near), overrun=int(cfg.overrun),
                        at_goal=float(perception.unchanged_threshold))
+
+
+def _tools(sim: Any, poses: dict[str, np.ndarray] | None = None, apertures: dict[str, float] | None = None) -> list[Any]:
+    """Every tool of ``sim`` as ToolPrimitives (at ``poses`` where given); none for a stand-in simulator
+    without tool specs."""
+    from pasta.execute.runlog import tool_primitives
+
+    if not hasattr(sim, "tool_spec") or not hasattr(sim, "tool_names"):
+        return []
+    return tool_primitives(sim, poses, apertures)
 
 
 def _controller(skill: Skill, kind: str) -> Controller:
@@ -156,6 +190,8 @@ def execute_plan(
     goal_labels = entity_labels(goal) if cfg.goal == "observed" else None  # entity label of every goal point
     monitor = step_monitor(cfg, perception)
     infos: list[StepInfo] = []
+    snapshots: list[StepSnapshot] = []
+    start_tools = _tools(sim)
     diverged = None
     executed: set[int] = set()  # plan steps already run
 
@@ -184,7 +220,7 @@ def execute_plan(
         watch = bool(getattr(controller, "watch", False))
         ended = monitor.should_run(obs.dough[idx], goal_points, keeps_count=len(subgoal) == len(attended),
                                    watch=watch, at_goal=getattr(skill, "at_goal", None)) if len(idx) else None
-        steps_run, attempts = 0, 0
+        steps_run, attempts, res = 0, 0, None
         expected = int(labels.max()) + 1 - len(attended) + skill.spec.n_out  # pieces after a successful step
         while ended is None or attempts:  # skipped (at its goal), or run until done or out of retries
             if attempts:  # re-attend: the pieces that hold most of the tracked particles, as observed now
@@ -221,6 +257,11 @@ def execute_plan(
         info = StepInfo(h, step.skill, step.inputs, attended, int(labels.max()) + 1, len(idx), steps_run,
                         str(Stop(ended)), attempts, e, normalized_improvement(emd0, e), time.perf_counter() - t0, h_plan)
         infos.append(info)
+        if res is not None:
+            snapshots.append(StepSnapshot(np.array(final, np.float32), _tools(sim, res.end_poses, res.end_apertures),
+                                          skill.tool, np.asarray(res.path, np.float32)))
+        else:  # skipped, or diverged in its first run: nothing moved where it can be drawn
+            snapshots.append(StepSnapshot(np.array(final, np.float32), [], skill.tool))
         if log:
             log.step_end(info)
         if diverged:
@@ -229,7 +270,8 @@ def execute_plan(
     last = infos[-1] if infos else None
     final_dough = obs.dough if diverged else sim.observe().dough
     emd_t = last.emd if last else emd0
-    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, diverged, [plan])
+    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, diverged, [plan],
+                             snapshots, start_tools, _tools(sim) if not diverged else [])
     if log:
         log.finish(result)
     return result

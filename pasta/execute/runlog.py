@@ -14,7 +14,7 @@ from pasta.core.skill import Skill
 if TYPE_CHECKING:
     from pasta.execute.executor import ExecutionResult, StepInfo
 
-__all__ = ["ExecutionLog"]
+__all__ = ["ExecutionLog", "tool_primitives"]
 
 
 def _tool_rgba(color: str) -> tuple[float, float, float, float]:
@@ -26,6 +26,27 @@ def _tool_rgba(color: str) -> tuple[float, float, float, float]:
     from matplotlib.colors import to_rgba
 
     return tuple(float(v) for v in to_rgba(color))
+
+
+def tool_primitives(sim: Any, poses: dict[str, np.ndarray] | None = None, apertures: dict[str, float] | None = None,
+                    rgba: dict[str, tuple[float, ...]] | None = None) -> list[Any]:
+    """Every tool of ``sim`` as :class:`pasta.io.ToolPrimitive` s (shapes from its ToolSpec, in its colour),
+    at its current pose and aperture, or at ``poses`` / ``apertures`` (tool -> (7,) pose / aperture) where
+    they name it. ``rgba``: tool -> colour, converted once by the caller (default: from each ToolSpec)."""
+    from pasta.io import ToolPrimitive
+    from pasta.sim.tools import tool_shapes
+
+    prims = []
+    for name in sim.tool_names:  # every tool of the simulator, drawn from its ToolSpec's primitives
+        spec = sim.tool_spec(name)
+        pose = (poses or {}).get(name)
+        pose = sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
+        aperture = (apertures or {}).get(name)
+        aperture = sim.tool_aperture(name) if aperture is None else aperture
+        colour = rgba[name] if rgba and name in rgba else _tool_rgba(spec.color)
+        for ent, kind, size, centre, quat in tool_shapes(spec, pose, aperture):
+            prims.append(ToolPrimitive(ent, kind, size, centre, quat, colour))
+    return prims
 
 
 class ExecutionLog:
@@ -65,16 +86,7 @@ class ExecutionLog:
 
     def tools(self, t: int, override: dict[str, np.ndarray] | None = None) -> None:
         """Log every tool at its current pose (``override``: tool -> (7,) pose to show instead)."""
-        from pasta.io import ToolPrimitive
-        from pasta.sim.tools import tool_shapes
-
-        prims = []
-        for name in self.sim.tool_names:  # every tool of the simulator, drawn from its ToolSpec's primitives
-            pose = (override or {}).get(name)
-            pose = self.sim.tool_pose(name) if pose is None else np.asarray(pose, np.float32)
-            for ent, kind, size, centre, quat in tool_shapes(self.sim.tool_spec(name), pose, self.sim.tool_aperture(name)):
-                prims.append(ToolPrimitive(ent, kind, size, centre, quat, self.tool_rgba[name]))
-        self.log.tools("/tools", t, prims)
+        self.log.tools("/tools", t, tool_primitives(self.sim, override, rgba=self.tool_rgba))
 
     def step_start(self, h: int, obs: Any, labels: np.ndarray, subgoal: list[np.ndarray], step: PlanStep,
                    attended: tuple[int, ...]) -> None:

@@ -1,17 +1,22 @@
 """PNG summary of one executed task episode.
 
-Draws one row of top-down scatter panels (x horizontal, z vertical): the initial dough, one panel per
-plan step with that step's decoded sub-goal pieces (one colour per piece, the step label as title),
-and a last "final vs goal" panel with the goal in light grey under the final dough. A second, shorter
-row shows the same panels from the side (x horizontal, y up). Every panel shares the same limits,
-derived from all clouds. Rendering uses the Agg canvas directly (no pyplot state): headless and
-thread safe.
+One column per stage, left to right: the initial dough, one column per plan step, and "final vs goal". The
+upper row is the top view (x right, z up), the lower row the side view (x right, y up); every panel has the
+same limits, fitted to the dough (every cloud drawn, with a margin) at equal scale on both axes, so the side
+view shows the dough's real height. A plan step's panel shows the step's planned (decoded) sub-goal in light
+pink under the dough observed after the step was executed, in dark blue, with the tool that did it drawn
+where its motion ended (its outline in its ``ToolSpec.color``) and its centre's path; the title names the
+skill, the planned feasibility and the normalised improvement after the step (its change over the step in
+brackets). The last panel shows the goal in grey under the final dough. A legend under the panels names the
+colours and the tools drawn. Rendering uses the Agg canvas directly (no pyplot state): headless, thread safe
+and deterministic.
 """
 
 from __future__ import annotations
 
 import pathlib
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -22,18 +27,42 @@ from pasta.core.errors import InputError
 from pasta.core.files import save_with
 from pasta.core.shapes import check_points
 
-__all__ = ["save_summary"]
+__all__ = ["ExecutedStep", "build_summary", "save_summary", "summary_steps", "view_limits"]
 
-_PANEL_W = 2.6  # inches per panel
-_TOP_H = 2.8  # inches of the top-down row
-_SIDE_H = 1.2  # inches of the side-view row
-_GOAL_COLOUR = "0.8"
-_FINAL_COLOUR = "tab:red"
-_DOUGH_COLOUR = "tab:blue"
-_MARKER = 1.5  # scatter marker area (points^2)
+_PANEL_W = 3.2  # inches per column
+_DOUGH_COLOUR = "#1d3557"  # observed dough: initial, after each step, final
+_PLANNED_COLOUR = "#f28cc0"  # a step's planned sub-goal (pink: no shipped tool's colour)
+_GOAL_COLOUR = "0.72"
+_MARKER = 2.0  # scatter marker area (points^2) of observed dough
+_UNDER_MARKER = 5.0  # planned sub-goal and goal, drawn under it: larger, so a mismatch shows as a rim
 
 Cloud = np.ndarray
-Panel = tuple[str, list[tuple[Cloud, str]]]
+
+
+@dataclass(frozen=True)
+class ExecutedStep:
+    """What executing one plan step did, for its panel.
+
+    Attributes:
+        dough: ``(P, 3)`` dough observed after the step.
+        improvement: normalised improvement of the episode after the step (``None``: not shown).
+        gain: its change over the step (``None``: not shown).
+        note: a few words after the improvement, e.g. ``"skipped: at its goal"`` (``""``: none).
+        tools: tools drawn in the panel, :class:`pasta.io.ToolPrimitive` s (any objects with ``name``,
+            ``kind``, ``size``, ``position``, ``quat_wxyz`` and ``color`` RGBA), where they were when the
+            step ended; those outside the panels' box (parked ones) are left out.
+        path: ``(T, 3)`` the driven tool's centre over the step, drawn as a dashed line from a circle
+            (``None``: no path).
+        path_color: the path's colour (a matplotlib colour).
+    """
+
+    dough: Any
+    improvement: float | None = None
+    gain: float | None = None
+    note: str = ""
+    tools: Sequence[Any] = ()
+    path: Any = None
+    path_color: Any = "0.3"
 
 
 def save_summary(
@@ -45,6 +74,9 @@ def save_summary(
     subgoals: Sequence[tuple[str, Sequence[Any]]],
     title: str = "",
     dpi: int = 100,
+    executed: Sequence[ExecutedStep | None] | None = None,
+    start_tools: Sequence[Any] = (),
+    end_tools: Sequence[Any] = (),
 ) -> pathlib.Path:
     """Write a PNG summary of one episode to ``path`` and return it as a :class:`pathlib.Path`.
 
@@ -54,55 +86,171 @@ def save_summary(
         goal: goal dough ``(G, 3)``.
         final: final dough ``(P, 3)``.
         subgoals: one ``(label, clouds)`` per plan step, ``clouds`` a list of decoded sub-goal
-            pieces ``(Ni, 3)``, e.g. ``("1. cut", [piece_a, piece_b])``.
+            pieces ``(Ni, 3)``, e.g. ``("1. cut (f=1.00)", [piece_a, piece_b])``.
         title: figure suptitle.
-        dpi: resolution; the image is ``(len(subgoals) + 2) * 2.6 * dpi`` pixels wide.
+        dpi: resolution; the image is ``(len(subgoals) + 2) * 3.2 * dpi`` pixels wide.
+        executed: one :class:`ExecutedStep` (or ``None``: not executed) per entry of ``subgoals``;
+            ``None``: the panels show the plan only.
+        start_tools, end_tools: tools (as in :attr:`ExecutedStep.tools`) drawn in the initial and the
+            final panel.
 
     Raises:
-        InputError: a cloud is not a finite ``(N, 3)`` array, or ``subgoals`` is malformed. The
-            message names the argument.
+        InputError: a cloud is not a finite ``(N, 3)`` array, or ``subgoals`` or ``executed`` is malformed.
+            The message names the argument.
     """
+    fig = build_summary(initial=initial, goal=goal, final=final, subgoals=subgoals, title=title, executed=executed,
+                        start_tools=start_tools, end_tools=end_tools)
+    return save_with(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
+
+
+def build_summary(
+    *,
+    initial: Any,
+    goal: Any,
+    final: Any,
+    subgoals: Sequence[tuple[str, Sequence[Any]]],
+    title: str = "",
+    executed: Sequence[ExecutedStep | None] | None = None,
+    start_tools: Sequence[Any] = (),
+    end_tools: Sequence[Any] = (),
+) -> Figure:
+    """The summary figure of :func:`save_summary` (same arguments), not yet saved: axes ``[0, i]`` are the
+    top views, ``[1, i]`` the side views, column 0 the initial dough, the last column final vs goal."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    from pasta.io.views import draw_tools
+
     init = _cloud(initial, "initial")
     goal_pts = _cloud(goal, "goal")
     fin = _cloud(final, "final")
     steps = _subgoals(subgoals)
+    done = _executed(executed, len(steps))
 
-    panels: list[Panel] = [("initial", [(init, _DOUGH_COLOUR)])]
-    for label, clouds in steps:
-        panels.append((label, [(c, f"C{j % 10}") for j, c in enumerate(clouds)]))
-    panels.append(("final vs goal", [(goal_pts, _GOAL_COLOUR), (fin, _FINAL_COLOUR)]))
+    # each panel: (title, [(cloud, colour, size)] bottom to top, tools, path or None)
+    panels: list[tuple[str, list[tuple[Cloud, str, float]], Sequence[Any], tuple[Cloud, Any] | None]] = [
+        ("initial", [(init, _DOUGH_COLOUR, _MARKER)], start_tools, None)]
+    for (label, clouds), (ex, dough) in zip(steps, done):
+        layers = [(c, _PLANNED_COLOUR, _UNDER_MARKER) for c in clouds]
+        if ex is None:
+            panels.append((f"{label}\nnot executed (planned sub-goal only)", layers, (), None))
+            continue
+        layers.append((dough, _DOUGH_COLOUR, _MARKER))
+        path = None
+        if ex.path is not None:
+            pts = _cloud(ex.path, f"executed path of '{label}'")
+            path = (pts, ex.path_color)
+        panels.append((f"{label}\n{_executed_line(ex)}", layers, ex.tools, path))
+    panels.append(("final vs goal", [(goal_pts, _GOAL_COLOUR, _UNDER_MARKER), (fin, _DOUGH_COLOUR, _MARKER)],
+                   end_tools, None))
 
-    all_pts = np.concatenate([c for _, layers in panels for c, _ in layers])
-    lo, hi = all_pts.min(0), all_pts.max(0)
-    x_lim, z_lim = _square_limits(lo[[0, 2]], hi[[0, 2]])
-    y_pad = max(0.1 * (hi[1] - lo[1]), 0.01)
-    y_lim = (lo[1] - y_pad, hi[1] + y_pad)
+    lo, hi = view_limits([c for _, layers, _, _ in panels for c, _, _ in layers])
+    box = (lo, hi)
+    span = hi - lo
+    top_h, side_h = _PANEL_W * span[2] / span[0], _PANEL_W * span[1] / span[0]
 
     n = len(panels)
-    fig = Figure(figsize=(n * _PANEL_W, _TOP_H + _SIDE_H + (0.4 if title else 0.0)), layout="constrained")
+    fig = Figure(figsize=(n * _PANEL_W, top_h + side_h + 1.4 + (0.4 if title else 0.0)), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(2, n, squeeze=False, gridspec_kw={"height_ratios": [_TOP_H, _SIDE_H]})
-    for col, (label, layers) in enumerate(panels):
+    axes = fig.subplots(2, n, squeeze=False, gridspec_kw={"height_ratios": [top_h, side_h]})
+    tools_seen: dict[str, tuple[float, ...]] = {}
+    for col, (label, layers, tools, path) in enumerate(panels):
         top, side = axes[0, col], axes[1, col]
-        for pts, colour in layers:
-            top.scatter(pts[:, 0], pts[:, 2], s=_MARKER, c=colour, linewidths=0)
-            side.scatter(pts[:, 0], pts[:, 1], s=_MARKER, c=colour, linewidths=0)
-        top.set_title(label, fontsize=10)
-        top.set_xlim(*x_lim)
-        top.set_ylim(*z_lim)
-        top.set_aspect("equal", adjustable="box")
-        side.set_xlim(*x_lim)
-        side.set_ylim(*y_lim)
-        for ax in (top, side):
+        for ax, (a, b) in ((top, (0, 2)), (side, (0, 1))):
+            for pts, colour, size in layers:
+                ax.scatter(pts[:, a], pts[:, b], s=size, c=colour, linewidths=0, zorder=2)
+            for name, rgba in draw_tools(ax, tools, (a, b), box=box).items():
+                tools_seen.setdefault(name, rgba)
+            if path is not None:
+                pts, colour = path
+                ax.plot(pts[:, a], pts[:, b], ls="--", lw=0.9, color=colour, zorder=4)
+                ax.plot(pts[0, a], pts[0, b], "o", ms=3.5, mfc="none", mec=colour, mew=0.9, zorder=4)
+            ax.set_xlim(lo[0], hi[0])
+            ax.set_ylim(lo[b], hi[b])
+            ax.set_aspect("equal", adjustable="box")
             ax.tick_params(labelsize=7)
+        top.set_title(label, fontsize=9)
+        side.set_xlabel("x", fontsize=8)
         if col == 0:
             top.set_ylabel("z (top view)", fontsize=8)
             side.set_ylabel("y (side view)", fontsize=8)
-        side.set_xlabel("x", fontsize=8)
+
+    def dot(colour: str, size: float) -> Line2D:
+        return Line2D([], [], ls="none", marker="o", ms=size, color=colour)
+
+    handles: list[Any] = [dot(_DOUGH_COLOUR, 4), dot(_PLANNED_COLOUR, 5), dot(_GOAL_COLOUR, 5)]
+    labels = ["observed dough (initial, after each step, final)", "planned sub-goal of the step", "goal"]
+    for name, rgba in tools_seen.items():
+        handles.append(Patch(facecolor=(*rgba[:3], 0.3), edgecolor=rgba, linewidth=1.2))
+        labels.append(f"{name} (tool)")
+    if any(path is not None for *_, path in panels):
+        handles.append(Line2D([], [], ls="--", lw=0.9, color="0.3", marker="o", ms=3.5, mfc="none", markevery=[0]))
+        labels.append("tool centre's path (from o)")
+    fig.legend(handles, labels, loc="outside lower center", ncols=min(len(handles), 4), fontsize=8, frameon=False)
     if title:
         fig.suptitle(title, fontsize=12)
+    return fig
 
-    return save_with(path, lambda fh: fig.savefig(fh, dpi=dpi, format="png"))
+
+def summary_steps(plan: Any, result: Any, encoder: Any, num_points: int = 400
+                  ) -> tuple[list[tuple[str, list[Any]]], list[ExecutedStep | None] | None, list[Any], list[Any]]:
+    """The arguments of :func:`save_summary` that describe a plan and its execution: ``(subgoals, executed,
+    start_tools, end_tools)``.
+
+    Args:
+        plan: the executed :class:`pasta.core.Plan` (``None``: no plan, e.g. the oracle; nothing to show).
+        result: its :class:`pasta.execute.ExecutionResult` (``None``: the plan only).
+        encoder: decodes each step's sub-goal latents into ``num_points`` points per piece.
+    """
+    from pasta.core.step import Stop
+    from pasta.io.views import base_name
+
+    if plan is None:
+        return [], None, [], []
+    subgoals = [(f"{h + 1}. {step.skill}  (plan f={step.feasibility:.2f})", encoder.decode_clouds(step.subgoal, num_points))
+                for h, step in enumerate(plan.steps)]
+    if result is None:
+        return subgoals, None, [], []
+    executed: list[ExecutedStep | None] = [None] * len(subgoals)
+    snapshots = list(getattr(result, "snapshots", []) or [])
+    before = 0.0
+    for k, info in enumerate(result.steps):
+        j = info.plan_step if info.plan_step >= 0 else info.step
+        gain, before = info.normalized_improvement - before, info.normalized_improvement
+        if k >= len(snapshots) or not 0 <= j < len(executed):
+            continue
+        snap = snapshots[k]
+        ended = Stop(info.ended)
+        note = {Stop.AT_GOAL: "skipped: at its goal", Stop.DIVERGED: "diverged"}.get(ended, f"{info.env_steps} steps")
+        if ended in (Stop.LIMIT, Stop.CAP, Stop.REGRESSED):
+            note += {Stop.LIMIT: " (step limit)", Stop.CAP: " (policy cap)", Stop.REGRESSED: " (regressed)"}[ended]
+        if info.attempts > 1:
+            note += f", {info.attempts} runs"
+        if info.step != j:
+            note += f", ran {info.step + 1}."
+        colour = next((tuple(t.color) for t in snap.tools if base_name(t.name) == snap.tool), "0.3")
+        executed[j] = ExecutedStep(snap.dough, info.normalized_improvement, gain, note, snap.tools,
+                                   snap.path if len(snap.path) else None, colour)
+    return subgoals, executed, list(getattr(result, "start_tools", [])), list(getattr(result, "end_tools", []))
+
+
+def view_limits(clouds: Sequence[Cloud]) -> tuple[np.ndarray, np.ndarray]:
+    """``(lo, hi)`` (3,) world box of the summary panels (:func:`pasta.io.views.view_box`, y up): every cloud
+    with a margin; the top view (x-z) padded to a height / width ratio within [0.3, 1.6], the side view (x-y)
+    raised to at least 0.2 of the width (room for the tools above the dough)."""
+    from pasta.io.views import view_box
+
+    return view_box(clouds, up=1)
+
+
+def _executed_line(ex: ExecutedStep) -> str:
+    """``executed: improvement 0.812 (+0.415)`` and the note on a line of its own."""
+    line = "executed"
+    if ex.improvement is not None:
+        line += f": improvement {ex.improvement:.3f}"
+        if ex.gain is not None:
+            line += f" ({ex.gain:+.3f})"
+    return f"{line}\n{ex.note}" if ex.note else line
 
 
 def _cloud(points: Any, name: str) -> Cloud:
@@ -137,8 +285,20 @@ def _subgoals(subgoals: Any) -> list[tuple[str, list[Cloud]]]:
     return steps
 
 
-def _square_limits(lo: np.ndarray, hi: np.ndarray) -> tuple[tuple[float, float], tuple[float, float]]:
-    """Padded limits of two axes with the same span, so equal aspect fills a square panel."""
-    centre = (lo + hi) / 2
-    half = max(float((hi - lo).max()) / 2 * 1.1, 0.02)
-    return (centre[0] - half, centre[0] + half), (centre[1] - half, centre[1] + half)
+def _executed(executed: Any, n: int) -> list[tuple[ExecutedStep | None, Cloud | None]]:
+    """Validate ``executed``: ``None`` or one :class:`ExecutedStep` or ``None`` per step."""
+    if executed is None:
+        return [(None, None)] * n
+    if isinstance(executed, (str, bytes)) or not isinstance(executed, Sequence):
+        raise InputError(f"executed must be a list of ExecutedStep (or None), got {type(executed).__name__}")
+    if len(executed) != n:
+        raise InputError(f"executed has {len(executed)} entries; expected one per plan step ({n})")
+    out: list[tuple[ExecutedStep | None, Cloud | None]] = []
+    for i, ex in enumerate(executed):
+        if ex is None:
+            out.append((None, None))
+        elif not isinstance(ex, ExecutedStep):
+            raise InputError(f"executed[{i}] must be an ExecutedStep or None, got {type(ex).__name__}")
+        else:
+            out.append((ex, _cloud(ex.dough, f"executed[{i}] dough")))
+    return out

@@ -240,13 +240,14 @@ def export_frames(
     up_axis: str = "y",
 ) -> list[Path]:
     """Render each point-cloud topic (default ``/dough``; with ``topics``, every cloud topic among
-    them) as PNG frames ``<topic>_<i>.png`` (top view and side view) plus ``<topic>.gif``.
-    Returns the written paths."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    them) as PNG frames ``<topic>_<i>.png`` plus ``<topic>.gif``. A frame shows the top view above the
+    side view, both at equal scale and with the same limits in every frame (fitted to the exported clouds,
+    :func:`pasta.io.views.view_box`), and the tools of the latest ``/tools`` message drawn as their shapes'
+    outlines in their logged colours (those outside the views, e.g. parked, are left out; a legend names
+    them). Returns the written paths."""
     from PIL import Image
+
+    from pasta.io.views import base_name, view_box, within
 
     info = reader.topic_info()
     clouds = [t for t, i in info.items() if i.schema_name == POINT_CLOUD_SCHEMA]
@@ -256,8 +257,6 @@ def export_frames(
         chosen = [DOUGH] if DOUGH in clouds else clouds
     out_dir.mkdir(parents=True, exist_ok=True)
     up = "xyz".index(up_axis)
-    horiz = [a for a in range(3) if a != up]  # top view: the two horizontal axes
-    names = "xyz"
     track = _tool_track(reader)
     written: list[Path] = []
     for topic in chosen:
@@ -267,46 +266,20 @@ def export_frames(
                 frames.append((t, pts, colors))
         if not frames:
             continue
-        allpts = np.concatenate([f[1] for f in frames if len(f[1])] or [np.zeros((1, 3), np.float32)])
-        finite = allpts[np.all(np.isfinite(allpts), axis=1)]
-        lo = finite.min(axis=0) if len(finite) else np.zeros(3)
-        hi = finite.max(axis=0) if len(finite) else np.ones(3)
-        pad = 0.05 * max(float((hi - lo).max()), 1e-6)
-        lo, hi = lo - pad, hi + pad
-        fig, (ax_top, ax_side) = plt.subplots(1, 2, figsize=(8, 4), dpi=80)
+        box = view_box([f[1] for f in frames], up=up, side_ratio=0.35)  # room for a tool coming down
+        legend: dict[str, tuple[float, ...]] = {}  # every tool the frames show in the box: one legend for all
+        for t_tools, prims in track:
+            if t_tools > frames[-1][0]:
+                break
+            for p in prims:
+                if base_name(p.name) not in legend and within(p, *box):
+                    legend[base_name(p.name)] = tuple(p.color)
         pngs = []
         for k, (t, pts, colors) in enumerate(frames):
-            for ax in (ax_top, ax_side):
-                ax.clear()
-            if colors is not None:
-                c = colors.astype(np.float32) / 255.0
-                kw: dict[str, Any] = {"c": c}
-            else:
-                kw = {"c": pts[:, up], "cmap": "viridis", "vmin": lo[up], "vmax": hi[up]}
-            ax_top.scatter(pts[:, horiz[0]], pts[:, horiz[1]], s=5, linewidths=0, **kw)
-            ax_side.scatter(pts[:, horiz[0]], pts[:, up], s=5, linewidths=0, **kw)
-            for tool in _tools_at(track, t):
-                p = tool.position
-                ax_top.plot(p[horiz[0]], p[horiz[1]], "kx")
-                ax_top.annotate(tool.name, (p[horiz[0]], p[horiz[1]]), fontsize=7)
-                ax_side.plot(p[horiz[0]], p[up], "kx")
-            ax_top.set_title(f"top  {topic}  t={_secs(t)}", fontsize=9)
-            ax_side.set_title("side", fontsize=9)
-            ax_top.set_xlim(lo[horiz[0]], hi[horiz[0]])
-            ax_top.set_ylim(lo[horiz[1]], hi[horiz[1]])
-            ax_side.set_xlim(lo[horiz[0]], hi[horiz[0]])
-            ax_side.set_ylim(lo[up], hi[up])
-            ax_top.set_xlabel(names[horiz[0]])
-            ax_top.set_ylabel(names[horiz[1]])
-            ax_side.set_xlabel(names[horiz[0]])
-            ax_side.set_ylabel(names[up])
-            for ax in (ax_top, ax_side):
-                ax.set_aspect("equal", adjustable="box")
-            fig.tight_layout()
+            fig = _frame_figure(topic, t, pts, colors, _tools_at(track, t), box, up, legend)
             png = out_dir / f"{_slug(topic)}_{k:05d}.png"
-            save_with(png, lambda fh: fig.savefig(fh, format="png"))
+            save_with(png, lambda fh, fig=fig: fig.savefig(fh, format="png"))
             pngs.append(png)
-        plt.close(fig)
         images = [Image.open(p).convert("RGB") for p in pngs]
         gif = out_dir / f"{_slug(topic)}.gif"
         duration = max(int(round(1000.0 / max(fps, 0.1))), 20)
@@ -314,6 +287,49 @@ def export_frames(
                                                  duration=duration, loop=0))
         written += pngs + [gif]
     return written
+
+
+_FRAME_W = 6.4  # inches
+
+
+def _frame_figure(topic: str, t: int, pts: np.ndarray, colors: np.ndarray | None, tools: list[Any],
+                  box: tuple[np.ndarray, np.ndarray], up: int, legend: dict[str, tuple[float, ...]]) -> Any:
+    """One exported frame: the top view above the side view of ``pts`` within ``box``, ``tools`` drawn in
+    their colours, a legend of ``legend`` (tool name -> RGBA)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Patch
+
+    from pasta.io.views import draw_tools
+
+    lo, hi = box
+    h0, h1 = (a for a in range(3) if a != up)
+    span = hi - lo
+    top_h, side_h = _FRAME_W * span[h1] / span[h0], _FRAME_W * span[up] / span[h0]
+    fig = Figure(figsize=(_FRAME_W, top_h + side_h + 1.3), dpi=80, layout="constrained")
+    FigureCanvasAgg(fig)
+    ax_top, ax_side = fig.subplots(2, 1, gridspec_kw={"height_ratios": [top_h, side_h]})
+    if colors is not None:
+        kw: dict[str, Any] = {"c": colors.astype(np.float32) / 255.0}
+    else:
+        kw = {"c": pts[:, up], "cmap": "viridis", "vmin": lo[up], "vmax": hi[up]}
+    names = "xyz"
+    for ax, b, label in ((ax_top, h1, "top view"), (ax_side, up, "side view")):
+        ax.scatter(pts[:, h0], pts[:, b], s=5, linewidths=0, zorder=2, **kw)
+        draw_tools(ax, tools, (h0, b), box=box)
+        ax.set_xlim(lo[h0], hi[h0])
+        ax.set_ylim(lo[b], hi[b])
+        ax.set_aspect("equal", adjustable="box")
+        ax.set_xlabel(names[h0], fontsize=8)
+        ax.set_ylabel(names[b], fontsize=8)
+        ax.set_title(f"{label} ({names[h0]}-{names[b]})", fontsize=9)
+        ax.tick_params(labelsize=7)
+    fig.suptitle(f"{topic}  t={_secs(t)}", fontsize=10)
+    if legend:
+        handles = [Patch(facecolor=(*c[:3], 0.3), edgecolor=c, linewidth=1.2) for c in legend.values()]
+        fig.legend(handles, list(legend), loc="outside lower center", ncols=min(len(legend), 6), fontsize=8,
+                   frameon=False)
+    return fig
 
 
 # ---------------------------------------------------------------------------------------------

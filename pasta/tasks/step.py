@@ -61,6 +61,9 @@ class SkillRun:
         approach: the tool pose the step started from.
         wall_s: wall-clock seconds of the whole step (approach to park).
         trajectory: the recorded steps, when asked for.
+        path: ``(T+1, 3)`` the driven tool's centre from the approach pose to where its motion ended.
+        end_poses: every tool's pose ``(7,)`` when the motion ended (before the idle steps and parking);
+            ``end_apertures``: their apertures then (simulators that have apertures).
     """
 
     skill: str
@@ -69,6 +72,9 @@ class SkillRun:
     approach: ToolPose
     wall_s: float
     trajectory: Trajectory | None = None
+    path: np.ndarray = field(default_factory=lambda: np.zeros((0, 3), np.float32))
+    end_poses: dict[str, np.ndarray] = field(default_factory=dict)
+    end_apertures: dict[str, float] = field(default_factory=dict)
 
     @property
     def done(self) -> bool:
@@ -273,6 +279,7 @@ def run_skill(
     monitor.begin(view.piece, view.goal, limit=limit, watch=bool(getattr(controller, "watch", False)))
     steps = 0
     ended: Stop | None = Stop.LIMIT if limit <= 0 else None
+    path = [np.asarray(obs.tool_poses[tool][:3], np.float32)]
     while ended is None:
         action, said = controller.act(view)
         said = stop_reason(said)
@@ -286,13 +293,18 @@ def run_skill(
         sim.step({tool: action})
         steps += 1
         obs = sim.observe()
+        path.append(np.asarray(obs.tool_poses[tool][:3], np.float32))
         view = skill_observation(obs, tool, idx, goal_points)
         ended = monitor.should_stop(view.piece, said, steps)
     if traj is not None:
         traj.add_obs(obs, tool)
+    end_poses = {name: np.array(pose, np.float32) for name, pose in obs.tool_poses.items()}
+    aperture = getattr(sim, "tool_aperture", None)
+    end_apertures = {name: float(aperture(name)) for name in end_poses} if callable(aperture) else {}
     for _ in range(max(0, idle_steps)):
         sim.step()
     if park:
         pose = skill.park_pose()
         sim.set_tool_pose(tool, pose.position, yaw=pose.yaw)
-    return SkillRun(skill.name, steps, ended, approach, time.perf_counter() - t0, traj)
+    return SkillRun(skill.name, steps, ended, approach, time.perf_counter() - t0, traj, np.stack(path), end_poses,
+                    end_apertures)

@@ -48,6 +48,14 @@ def test_executor_runs_one_step_plan_and_logs_a_verifiable_run(tmp_path, nudge, 
     assert sim.step_count == 6  # 4 controller steps + 2 idle
     np.testing.assert_allclose(sim.tool_pose("pusher")[:3], [0.45, 0.8, 0.12], atol=1e-6)  # parked
     assert np.isfinite(res.normalized_improvement) and res.normalized_improvement > 0  # the dough moved towards -x
+    # what the summary image draws: the dough after the step, the pusher where its motion ended (not parked)
+    [snap] = res.snapshots
+    np.testing.assert_array_equal(snap.dough, res.final_dough)
+    assert snap.tool == "pusher" and snap.path.shape == (5, 3)  # approach + 4 controller steps
+    pusher = [t for t in snap.tools if t.name == "pusher"]
+    assert len(pusher) == 1 and np.allclose(pusher[0].position, snap.path[-1], atol=1e-6)
+    assert not np.allclose(pusher[0].position, [0.45, 0.8, 0.12])
+    assert {t.name for t in res.start_tools} == {t.name for t in res.end_tools} == {t.name for t in snap.tools}
 
     r = RunReader(path)
     assert {"/plan", "/actions", "/dough", "/goal", "/entities", "/plan/subgoals", "/step", "/metrics"} <= set(r.topics())

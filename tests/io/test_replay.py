@@ -49,6 +49,39 @@ def test_export_pngs_and_gif(sample_run, tmp_path, capsys):
     assert len(list(out2.glob("colored_*.png"))) == 2 and (out2 / "entities.gif").exists()
 
 
+def test_export_draws_tools_as_shapes_in_their_colours(tmp_path):
+    """A green knife over the right end of the dough is drawn there in both views; a blue tool parked high
+    above is not drawn at all."""
+    from matplotlib.image import imread
+
+    from pasta.io import RunLogger
+
+    rng = np.random.default_rng(0)
+    dough = (rng.random((400, 3)) * [0.4, 0.05, 0.1] + [0.3, 0.02, 0.45]).astype(np.float32)
+    green, blue = (0.0, 0.8, 0.0, 1.0), (0.0, 0.0, 1.0, 1.0)
+    path = tmp_path / "tools.mcap"
+    with RunLogger(path) as log:
+        log.point_cloud("/dough", 0, dough)
+        log.tools("/tools", 0, [ToolPrimitive("knife", "cube", (0.03, 0.1, 0.12), (0.65, 0.08, 0.5), color=green),
+                                ToolPrimitive("spatula", "cube", (0.14, 0.03, 0.14), (0.4, 0.85, 0.5), color=blue)])
+    with RunReader(path) as reader:
+        [png, _gif] = replay.export_frames(reader, tmp_path / "frames")
+    img = imread(png)[..., :3]
+    height = img.shape[0]
+    body = img[: int(0.88 * height)]  # the views; the legend at the bottom left out
+
+    def near(rgb):
+        return np.abs(body - np.array(rgb)).max(-1) < 0.1
+
+    rows, cols = np.nonzero(near(green[:3]))
+    assert len(cols) > 20
+    assert np.all(cols > 0.6 * img.shape[1])  # the knife is at the right end of the dough, in both views
+    assert rows.min() < 0.45 * height < rows.max()  # top view (upper half) and side view (lower half)
+    assert not near(blue[:3]).any()  # parked high above the dough: not drawn
+    assert (np.abs(img - np.array(green[:3])).max(-1) < 0.1)[int(0.88 * height):].any()  # the legend names the knife
+    assert not (np.abs(img - np.array(blue[:3])).max(-1) < 0.1).any()  # and not the parked spatula
+
+
 def test_not_mcap_exit_code(tmp_path, capsys):
     p = tmp_path / "x.mcap"
     p.write_text("nope")
