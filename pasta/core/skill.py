@@ -55,9 +55,9 @@ class SkillSpec:
             raise PluginValidationError(
                 f"skill name {self.name!r} must be lower case letters, digits and '_', starting with a letter"
             )
-        for field, value in (("n_in", self.n_in), ("n_out", self.n_out)):
+        for attr, value in (("n_in", self.n_in), ("n_out", self.n_out)):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise PluginValidationError(f"skill '{self.name}': {field} must be an integer >= 1, got {value!r}")
+                raise PluginValidationError(f"skill '{self.name}': {attr} must be an integer >= 1, got {value!r}")
         if not isinstance(self.tool, str) or not self.tool:
             raise PluginValidationError(f"skill '{self.name}': tool must be a non-empty string, got {self.tool!r}")
 

@@ -10,12 +10,14 @@ verify); 2 the file could not be read (not MCAP, corrupt, truncated without ``--
 from __future__ import annotations
 
 import argparse
+import functools
 import io
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -304,15 +306,15 @@ def export_frames(
                 ax.set_aspect("equal", adjustable="box")
             fig.tight_layout()
             png = out_dir / f"{_slug(topic)}_{k:05d}.png"
-            save_with(png, lambda fh: fig.savefig(fh, format="png"))
+            save_with(png, functools.partial(fig.savefig, format="png"))
             pngs.append(png)
         plt.close(fig)
         images = [Image.open(p).convert("RGB") for p in pngs]
         gif = out_dir / f"{_slug(topic)}.gif"
         duration = max(int(round(1000.0 / max(fps, 0.1))), 20)
-        save_with(gif, lambda fh: images[0].save(fh, format="gif", save_all=True, append_images=images[1:],
-                                                 duration=duration, loop=0))
-        written += pngs + [gif]
+        save_with(gif, functools.partial(images[0].save, format="gif", save_all=True, append_images=images[1:],
+                                         duration=duration, loop=0))
+        written += [*pngs, gif]
     return written
 
 
@@ -336,7 +338,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
         return False, math.inf
 
     from pasta.plugins import get_plugins
-    from pasta.sim import SimConfig, Simulator, SimState  # lazy: only verify needs the simulator
+    from pasta.sim import Simulator, SimState  # lazy: only verify needs the simulator
 
     cfg = logged_sim_config(reader)
     state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))

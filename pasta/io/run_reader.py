@@ -24,10 +24,11 @@ import json
 import os
 import struct
 import zlib
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Iterator, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import zstandard
@@ -88,7 +89,7 @@ class RunReader:
         self._proto_decoders = ProtobufDecoderFactory()
         self._decoder_cache: dict[int, Any] = {}
         try:
-            self._file = open(self.path, "rb")
+            self._file = open(self.path, "rb")  # noqa: SIM115 - open for the reader's lifetime; close() closes it
         except OSError as e:
             hint = ""
             if not self.path.exists() and partial_path(self.path).exists():
@@ -251,7 +252,7 @@ class RunReader:
         if f is not None:
             f.close()
 
-    def __enter__(self) -> "RunReader":
+    def __enter__(self) -> RunReader:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -375,7 +376,7 @@ class RunReader:
     def point_clouds(self, topic: str) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``(t_ns, points (N, 3) float32, colors (N, 4) uint8 or None)`` for a point-cloud topic
         (entity clouds come back concatenated, with their palette colours)."""
-        for ch, schema, m in self._raw([topic], False):
+        for _ch, schema, m in self._raw([topic], False):
             if schema is None or schema.name != S.POINT_CLOUD_SCHEMA:
                 raise TypeError(f"{topic} carries {schema.name if schema else 'schemaless'} messages, not point clouds")
             with self._errors(f"decoding a point cloud on {topic}"):

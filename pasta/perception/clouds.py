@@ -242,7 +242,7 @@ def read_ply(path: str | Path, name: str = "cloud", *, max_file_points: int = MA
             if e is vertex:
                 break
             skip += e[1]
-        rows = [ln for ln in lines[skip:skip + vertex[1]]]
+        rows = list(lines[skip:skip + vertex[1]])
         expected = f"{str(path)!r}: expected {vertex[1]} vertex rows of {len(names)} values"
         if len(rows) != vertex[1]:
             raise InputError(expected)

@@ -518,7 +518,7 @@ def fixed_matching(final: torch.Tensor, goal: torch.Tensor, fixed_pos: torch.Ten
     f = len(fixed_goal)
     taken = torch.zeros(b, k, dtype=torch.long).scatter_(1, fixed_pos, 1)
     free_pos = torch.argsort(taken, dim=1, stable=True)[:, : k - f]  # (B, K - F), ascending
-    gset = set(int(j) for j in fixed_goal)
+    gset = {int(j) for j in fixed_goal}
     free_goal = torch.tensor([j for j in range(goal.shape[0]) if j not in gset], dtype=torch.long)
     kf, gf = k - f, free_goal.shape[0]
     with torch.no_grad():

@@ -18,6 +18,7 @@ its inputs and the loaded regressor.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -83,7 +84,7 @@ def x_at_share(cloud: np.ndarray, share: float) -> float:
 
 def _mlp(sizes: Sequence[int], last_act: bool = True) -> nn.Sequential:
     layers: list[nn.Module] = []
-    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         layers.append(nn.Linear(a, b))
         if last_act or i < len(sizes) - 2:
             layers.append(nn.ReLU())

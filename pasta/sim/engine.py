@@ -88,16 +88,16 @@ def ensure_taichi(arch: str = "cpu", cpu_threads: int = 2, fast_math: bool | Non
             )
         return
     archs = {"cpu": ti.cpu, "cuda": ti.cuda, "gpu": ti.gpu, "vulkan": ti.vulkan, "metal": ti.metal}
-    kwargs = dict(
-        arch=archs[arch],
-        default_fp=ti.f32,
-        default_ip=ti.i32,
-        fast_math=bool(fast_math),
-        offline_cache=True,
-        offline_cache_file_path=cache_dir(),
-        random_seed=0,
-        log_level=ti.WARN,
-    )
+    kwargs = {
+        "arch": archs[arch],
+        "default_fp": ti.f32,
+        "default_ip": ti.i32,
+        "fast_math": bool(fast_math),
+        "offline_cache": True,
+        "offline_cache_file_path": cache_dir(),
+        "random_seed": 0,
+        "log_level": ti.WARN,
+    }
     if arch == "cpu" and cpu_threads > 0:
         kwargs["cpu_max_num_threads"] = cpu_threads
     os.makedirs(cache_dir(), exist_ok=True)
@@ -399,7 +399,7 @@ class Engine:
                     vel = ti.Vector([vel[0] * scale, 0.0, vel[2] * scale])
                 # free-slip side walls and ceiling
                 for d in ti.static(range(3)):
-                    if ti.static(d != 1):
+                    if ti.static(d != 1):  # noqa: SIM102 - a compile-time branch: no runtime `and` with it
                         if I[d] < WALL_CELLS and vel[d] < 0:
                             vel[d] = 0.0
                     if I[d] > n - WALL_CELLS and vel[d] > 0:
@@ -441,7 +441,7 @@ class Engine:
         def refresh_svd():
             """Recompute the warm-start rotations from F with a full SVD (once per env step)."""
             for p in range(n_p[None]):
-                U, sig, V = ti.svd(F[p])
+                _U, _sig, V = ti.svd(F[p])
                 Vr[p] = V
 
         @ti.kernel
@@ -588,7 +588,7 @@ class Engine:
         m = self.max_particles
 
         def pad(a: np.ndarray, shape: tuple) -> np.ndarray:
-            out = np.zeros((m,) + shape, dtype=np.float32)
+            out = np.zeros((m, *shape), dtype=np.float32)
             out[:n] = a
             return out
 

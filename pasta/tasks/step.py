@@ -134,9 +134,9 @@ class GoalMonitor(StepMonitor):
     def should_run(self, piece: np.ndarray, goal: np.ndarray | None, *, keeps_count: bool,
                    watch: bool, at_goal: float | None = None) -> Stop | None:
         tolerance = self.at_goal if at_goal is None else float(at_goal)
-        if watch and keeps_count and goal is not None and len(piece) and tolerance > 0:
-            if self.distance(piece, goal) < tolerance:
-                return Stop.AT_GOAL
+        if (watch and keeps_count and goal is not None and len(piece) and tolerance > 0
+                and self.distance(piece, goal) < tolerance):
+            return Stop.AT_GOAL
         return None
 
     def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool) -> None:

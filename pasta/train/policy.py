@@ -154,8 +154,8 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
     if cfg.start_at_reset:
         demos = [from_reset_pose(d) for d in demos]
     train_demos, val_demos = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=seed)
-    kw = dict(dough_points=cfg.dough_points, tool_points=cfg.tool_points, goal_points=cfg.goal_points,
-              hindsight_ratio=cfg.hindsight_ratio)
+    kw = {"dough_points": cfg.dough_points, "tool_points": cfg.tool_points, "goal_points": cfg.goal_points,
+          "hindsight_ratio": cfg.hindsight_ratio}
     train = DemoSet(train_demos, noise=cfg.noise, **kw)
     val = DemoSet(val_demos or train_demos, noise=0.0, **kw)
     if tool is None:

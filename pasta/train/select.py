@@ -53,7 +53,7 @@ def stop_index(probs: Sequence[float], actions: Sequence[np.ndarray], threshold:
     step, an all-zero one ends it without stepping; ``len(probs)`` when the rule never fires.
     ``max_steps`` > 0: the controller also reports done at its ``max_steps``-th action."""
     for i, (p, a) in enumerate(zip(probs, actions)):
-        if i + 1 >= min_steps and p > threshold or 0 < max_steps <= i + 1:
+        if (i + 1 >= min_steps and p > threshold) or 0 < max_steps <= i + 1:
             return i + 1 if np.any(np.clip(np.asarray(a, np.float32), -1.0, 1.0)) else i
     return len(probs)
 

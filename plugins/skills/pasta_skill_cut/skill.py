@@ -20,9 +20,9 @@ least ``min_travel``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -324,11 +324,11 @@ class CutSkill(Skill):
     #: 6-33 mm short (docs/policies.md, "crs_twice with learned policies")
     #: Only the reset pose learns from them (``stages``): the policy, its feasibility and the planner's
     #: networks stay as trained on the default demos.
-    demo_variants = {"long": DemoVariant(config={"offset_max": 0.25, "shift_max": 0.12}, pipeline_demos=150,
+    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {"long": DemoVariant(config={"offset_max": 0.25, "shift_max": 0.12}, pipeline_demos=150,
                                          stages=("reset",),
                                          description="a 0.3-0.35 long dough cut up to 0.25 from its end, the knife "
                                                      "travelling up to 0.12 (for the learned reset pose only)")}
-    training_defaults = {
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "feasibility": {"stride": 3, "shift_per_positive": 5, "shift_entities": "one", "shift_max": 0.25},
         "policy": {"start_at_reset": True},
         "reset": {},  # the reset stage runs for the cut, with the trainer's defaults (the shipped regressor's)

@@ -16,6 +16,8 @@ thickness), so the controllers need nothing but a :class:`pasta.core.SkillObserv
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -100,7 +102,7 @@ class GatherSkill(Skill):
     spec = SPEC
     sweep_half_width = FINGER_HALF[2]
     #: the shipped networks' settings (docs/learning.md, "The board skills"; docs/policies.md)
-    training_defaults = {"feasibility": {"stride": 4, "epochs": 8}}
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {"feasibility": {"stride": 4, "epochs": 8}}
 
     def __init__(self, config: GatherConfig | None = None) -> None:
         super().__init__(config if config is not None else GatherConfig())
