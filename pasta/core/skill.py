@@ -73,14 +73,15 @@ class SkillObservation:
 
     Attributes:
         piece: ``(P, 3)`` points of the attended dough piece(s).
-        goal: ``(G, 3)`` points of the step's sub-goal (all produced entities together).
+        goal: ``(G, 3)`` points of the step's sub-goal (all produced entities together); ``None`` for
+            scripted experts, which need none.
         tool_points: ``(T, 3)`` surface points of the skill's tool.
         tool_pose: ``(7,)`` tool position and unit quaternion (w, x, y, z).
         scene: ``(S, 3)`` the whole observed dough, for controllers that must avoid other pieces.
     """
 
     piece: np.ndarray
-    goal: np.ndarray
+    goal: np.ndarray | None
     tool_points: np.ndarray
     tool_pose: np.ndarray
     scene: np.ndarray | None = None

@@ -169,9 +169,9 @@ def print_timeline(reader: RunReader, topics: list[str] | None, out: TextIO, max
             print("not in file: " + ", ".join(missing), file=out)
     print("topics:", file=out)
     width = max((len(t) for t in shown), default=5)
-    for t in shown:
-        i = info[t]
-        print(f"  {t:<{width}}  {i.schema_name:<24} {i.count:>7}", file=out)
+    for topic in shown:
+        i = info[topic]
+        print(f"  {topic:<{width}}  {i.schema_name:<24} {i.count:>7}", file=out)
 
     if PLAN in shown:
         print("plan:", file=out)
@@ -263,7 +263,7 @@ def export_frames(
     track = _tool_track(reader)
     written: list[Path] = []
     for topic in chosen:
-        frames = []
+        frames: list[tuple[int, np.ndarray, np.ndarray | None]] = []
         for i, (t, pts, colors) in enumerate(reader.point_clouds(topic)):
             if i % max(every, 1) == 0 and len(frames) < max_frames:
                 frames.append((t, pts, colors))

@@ -40,6 +40,7 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
+from mcap.summary import Summary
 from mcap.well_known import MessageEncoding
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
@@ -176,14 +177,14 @@ class RunReader:
         self._file.seek(0)
         with self._errors("reading the summary"):
             self._reader = SeekingReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1024))
-            self._header = self._reader.get_header()
+            self._header: Header | None = self._reader.get_header()
             summary = self._reader.get_summary()
         if summary is None:
             # No summary section (not written by RunLogger): fall back to one streamed pass.
             self._file.seek(0)
             self._load_stream(strict=True)
             return
-        self._summary = summary
+        self._summary: Summary | None = summary
         self._schemas: dict[int, Schema] = dict(summary.schemas)
         self._channels: dict[int, Channel] = dict(summary.channels)
         stats = summary.statistics
@@ -230,8 +231,8 @@ class RunReader:
         if not self.complete and self.recover_error is None:
             self.recover_error = "file ended before the data-section end record"
         if not self.complete and whole < self._size:  # say what was left out: nothing past it is read
-            self.recover_error += (f"; kept the records up to byte {whole}, skipped the last {self._size - whole} "
-                                   f"bytes of {self._size}")
+            self.recover_error = (f"{self.recover_error}; kept the records up to byte {whole}, skipped the last "
+                                  f"{self._size - whole} bytes of {self._size}")
         elif self.complete and not strict:
             problem = self._tail_problem()  # the data section is whole: is what follows it (summary, footer)?
             if problem is not None:
@@ -392,10 +393,16 @@ class RunReader:
 
     # ---------------------------------------------------------------- attachments / metadata
 
+    @property
+    def _index(self) -> Summary:
+        """The summary section of a file read through its index (not streamed)."""
+        assert self._summary is not None  # _open_indexed sets it whenever _stream_messages is None
+        return self._summary
+
     def attachment_names(self) -> list[str]:
         if self._stream_messages is not None:
             return [a.name for a in self._stream_attachments]
-        return [a.name for a in self._summary.attachment_indexes]
+        return [a.name for a in self._index.attachment_indexes]
 
     def attachment(self, name: str) -> bytes:
         """Bytes of attachment ``name`` (CRC-checked); KeyError listing the names if absent."""
@@ -404,7 +411,7 @@ class RunReader:
                 if a.name == name:
                     return bytes(a.data)
         else:
-            for idx in self._summary.attachment_indexes:
+            for idx in self._index.attachment_indexes:
                 if idx.name == name:
                     return self._read_attachment(idx)
         raise KeyError(f"{self.path} has no attachment {name!r}; it has {self.attachment_names()}")
@@ -431,7 +438,7 @@ class RunReader:
     def metadata_names(self) -> list[str]:
         if self._stream_messages is not None:
             return [m.name for m in self._stream_metadata]
-        return [m.name for m in self._summary.metadata_indexes]
+        return [m.name for m in self._index.metadata_indexes]
 
     def metadata(self, name: str = RUN_METADATA) -> dict[str, str]:
         """Metadata record ``name`` (default: the run metadata passed to RunLogger); {} if absent."""

@@ -282,8 +282,8 @@ def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
     if "demos" in stages:
         from pasta.demos import check_demo_skill
 
-        for skill in skills:
-            check_demo_skill(skill)
+        for s in skills:
+            check_demo_skill(s)
     for name, skill in overrides:
         if name not in stages:
             print(f"pasta pipeline: warning: {name}.* settings given but stage {name} is not in "

@@ -4,7 +4,7 @@ One substep = 4 kernel launches:
 
 1. ``constitutive`` (parallel over particles): trial F = (I + dt C) F, SVD, von Mises return mapping
    on log singular values, fixed-corotated stress, and the per-particle APIC "affine" matrix.
-2. ``scatter`` (P2G, serialized loop): quadratic B-spline scatter of mass and momentum into a
+2. ``p2g`` (scatter, serialized loop): quadratic B-spline scatter of mass and momentum into a
    (m v, m) grid, also tracking the bounding box of touched nodes. A serialized loop lets Taichi
    demote the float atomics to plain adds (about 3x faster than the atomic parallel scatter on
    CPU) and makes the result bitwise deterministic.
@@ -245,7 +245,7 @@ class Engine:
 
         # ---------------------------------------------------------------- constitutive model
         @ti.func
-        def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):
+        def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
             """One exact Jacobi rotation zeroing S[p, q]; returns (J^T S J, V J)."""
             spq = S[p, q]
             d = 0.5 * (S[q, q] - S[p, p])
@@ -450,7 +450,7 @@ class Engine:
                 constitutive_p(p)
 
         @ti.kernel
-        def scatter():
+        def p2g():
             """P2G. Serial mode: one serialized loop (Taichi demotes the atomics to plain adds:
             ~3x faster than parallel atomics on CPU, bitwise deterministic)."""
             lo = ti.Vector([n, n, n])
@@ -549,7 +549,7 @@ class Engine:
 
         self._refresh_svd = refresh_svd
         self._constitutive = constitutive
-        self._scatter = scatter
+        self._scatter = p2g
         self._grid_op = grid_op
         self._g2p = g2p
         self._substep_fused = substep_fused

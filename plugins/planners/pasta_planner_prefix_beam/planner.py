@@ -55,12 +55,14 @@ class PrefixBeamPlanner(LatentPlanner):
         gen = self.generator(problem)
         t0 = time.perf_counter()
         timings = {"enumerate": 0.0, "beam": 0.0, "sample": 0.0, "optimise": 0.0}
+        stages: list[dict]
         if problem.skeleton is not None:
             sequences, stages = problem.skeletons(), []  # the given skeleton (cardinality checked)
         else:
             sequences, stages, prefix_timings = self._beam(problem, gen)
             timings["beam"] = prefix_timings
-        results, polish = [], []
+        results: list[SearchResult] = []
+        polish: list[dict] = []
         if int(cfg.polish) > 0 and problem.skeleton is None:
             results += self._polish(problem, sequences, gen, polish)
         else:
@@ -216,7 +218,8 @@ class PrefixBeamPlanner(LatentPlanner):
             # the best `width` per entity count: the partial set cost ignores unmatched goal entities, so
             # prefixes with fewer entities than the goal look better than they are and must not crowd out
             # the others
-            kept, per_count = [], {}
+            kept: list[int] = []
+            per_count: dict[int, int] = {}
             for i in order:
                 n = len(children[i].states[-1])
                 if per_count.get(n, 0) < int(cfg.width):

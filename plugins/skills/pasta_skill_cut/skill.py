@@ -191,6 +191,7 @@ class CutController(Controller):
         if self.plan is None:
             self.reset(obs)
         plan, cfg = self.plan, self.cfg
+        assert plan is not None  # reset() makes it
         x, y = float(obs.tool_pose[0]), float(obs.tool_pose[1])
         low = self.bottom - cfg.tip_depth + KNIFE_TIP
         high = self.top + cfg.clearance + KNIFE_TIP
@@ -248,6 +249,7 @@ class CutController(Controller):
         it, or the re-entry pushed it). From its near side when it must move away from the knife, else
         lift the knife over it, lower it on its far side and push back."""
         plan, cfg = self.plan, self.cfg
+        assert plan is not None  # (act() made it)
         piece = np.asarray(obs.piece, np.float64)
         if self.phase == "fix":
             self.side_x = x
@@ -378,7 +380,7 @@ class CutSkill(Skill):
         return self.approach_pose(piece)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in KNIFE_PARK), 0.0)
+        return ToolPose(KNIFE_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``cut_x``: the piece's left end + U(offset_min, offset_max) (both parts keep >= offset_min);

@@ -119,7 +119,7 @@ class GatherSkill(Skill):
         return approach(as_points(piece, "piece"), self.config)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in GRIPPER_PARK), 0.0)
+        return ToolPose(GRIPPER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``width`` U(width_min, width_max), at most ``max_fraction`` of the lumps' extent along the axis."""

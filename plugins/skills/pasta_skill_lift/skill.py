@@ -125,7 +125,7 @@ class LiftSkill(Skill):
         return scoop_pose(as_points(piece, "piece"), self.config.scoop_depth)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in SPATULA_PARK), 0.0)
+        return ToolPose(SPATULA_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """A target centroid uniform in the config's box (on the board) and the config's surface height."""

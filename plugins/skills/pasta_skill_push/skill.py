@@ -186,7 +186,7 @@ class PushSkill(Skill):
         return placement(as_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in PUSHER_PARK), 0.0)
+        return ToolPose(PUSHER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """A target centroid uniform in the config's box, at least ``min_distance`` from the piece."""

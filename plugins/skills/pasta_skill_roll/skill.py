@@ -185,7 +185,7 @@ class RollSkill(Skill):
         return ToolPose((float(c[0]), top + ROLLER_RADIUS + self.config.clearance, float(c[2])), yaw)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in ROLLER_PARK), 0.0)
+        return ToolPose(ROLLER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``height`` U(height_min, height_max); ``length`` the length the piece's volume (bounding box)
@@ -227,4 +227,6 @@ class RollSkill(Skill):
         it) for the ``board`` variant; none otherwise."""
         if variant != "board":
             return {}
-        return {"board": ToolPose(standing_tool("board").stand, 0.0)}
+        stand = standing_tool("board").stand
+        assert stand is not None  # standing_tool() checks it
+        return {"board": ToolPose(stand, 0.0)}

@@ -134,7 +134,7 @@ class CRSTask(Task):
     """CutRearrangeSpread: cut a short piece off, push it to the spreading area, roll it flat."""
 
     name = "crs"
-    config_class = CRSConfig
+    config_class: ClassVar[type[TaskConfig]] = CRSConfig
     skeleton = ("cut", "push", "roll")
     summary = "cut, push the cut piece to the spreading area, roll it flat"
     z_spread = 0.2
