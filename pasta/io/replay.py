@@ -327,7 +327,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
     order and compare the final particle positions with ``final_state.npz`` (or the last ``/dough``
     cloud). Prints the maximum absolute deviation; returns ``(deviation <= tolerance, deviation)``."""
     out = out or sys.stdout
-    say: Callable[[str], None] = lambda s: print(s, file=out)  # noqa: E731
+    say: Callable[[str], None] = lambda s: print(s, file=out)  # noqa: E731 - a one-line printer to out
     names = reader.attachment_names()
     for need in (INITIAL_STATE, SIM_CONFIG):
         if need not in names:
