@@ -3,13 +3,13 @@
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
-# extras installed with pasta: dev (pytest, hypothesis). CI (.ci/run) sets EXTRAS=dev,ray so that the Ray
+# extras installed with pasta: dev (pytest, hypothesis, ruff, mypy). CI (.ci/run) sets EXTRAS=dev,ray so that the Ray
 # backend's tests run there; `make demo` and a newcomer's `make test` do not need Ray (those tests skip).
 EXTRAS ?= dev
 comma := ,
 STAMP := $(VENV)/.installed-$(subst $(comma),-,$(EXTRAS))
 
-.PHONY: install demo train test test-all clean
+.PHONY: install demo train lint test test-all clean
 
 install: $(STAMP)
 
@@ -34,6 +34,11 @@ TRAIN_ARGS ?=
 train: $(STAMP)
 	$(PY) -m pasta pipeline $(TRAIN_ARGS)
 
+# ruff (the rules in pyproject's [tool.ruff.lint]) and mypy ([tool.mypy]; its cache is .mypy_cache): both run,
+# a finding of either fails
+lint: $(STAMP)
+	status=0; $(VENV)/bin/ruff check pasta plugins pasta_dough || status=1; $(PY) -m mypy || status=1; exit $$status
+
 test: $(STAMP)
 	$(PY) -m pytest -m "not slow" -q
 
@@ -41,4 +46,4 @@ test-all: $(STAMP)
 	$(PY) -m pytest -q
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info .mypy_cache .ruff_cache

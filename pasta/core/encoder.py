@@ -56,8 +56,8 @@ class Encoder(ABC):
             x = torch.as_tensor(np.asarray(latents, np.float32))
         with torch.no_grad():
             out = self.decode(x, num_points)
-        out = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
-        return [np.asarray(c, np.float32) for c in out]
+        clouds = out.detach().cpu().numpy() if hasattr(out, "detach") else np.asarray(out)
+        return [np.asarray(c, np.float32) for c in clouds]
 
     @abstractmethod
     def sample_prior(self, n: int, generator: torch.Generator) -> torch.Tensor:

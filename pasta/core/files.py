@@ -25,7 +25,7 @@ import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Any
+from typing import IO, Any, ClassVar
 
 from pasta.core.errors import InputError, PastaError
 
@@ -48,7 +48,8 @@ def atomic_write(path: str | os.PathLike[str], mode: str = "wb") -> Iterator[IO[
     target.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
-        with os.fdopen(fd, mode, **({"encoding": "utf-8", "newline": ""} if mode == "w" else {})) as fh:
+        text = mode == "w"
+        with os.fdopen(fd, mode, encoding="utf-8" if text else None, newline="" if text else None) as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
@@ -146,13 +147,13 @@ class OutputLock:
     """
 
     #: lock file (resolved) -> [fd, holders] of the claims this process holds
-    _held: dict[str, list[int]] = {}
+    _held: ClassVar[dict[str, list[int]]] = {}
 
     def __init__(self, output: str | os.PathLike[str], key: str = "out") -> None:
         self.output, self.key = Path(output), key
         self._path: Path | None = None
 
-    def acquire(self) -> "OutputLock":
+    def acquire(self) -> OutputLock:
         if self._path is not None:
             return self
         path = lock_path(self.output)
@@ -219,7 +220,7 @@ class OutputLock:
             pass
         os.close(fd)
 
-    def __enter__(self) -> "OutputLock":
+    def __enter__(self) -> OutputLock:
         return self.acquire()
 
     def __exit__(self, *exc: Any) -> None:

@@ -55,9 +55,9 @@ class SkillSpec:
             raise PluginValidationError(
                 f"skill name {self.name!r} must be lower case letters, digits and '_', starting with a letter"
             )
-        for field, value in (("n_in", self.n_in), ("n_out", self.n_out)):
+        for attr, value in (("n_in", self.n_in), ("n_out", self.n_out)):
             if not isinstance(value, int) or isinstance(value, bool) or value < 1:
-                raise PluginValidationError(f"skill '{self.name}': {field} must be an integer >= 1, got {value!r}")
+                raise PluginValidationError(f"skill '{self.name}': {attr} must be an integer >= 1, got {value!r}")
         if not isinstance(self.tool, str) or not self.tool:
             raise PluginValidationError(f"skill '{self.name}': tool must be a non-empty string, got {self.tool!r}")
 
@@ -73,14 +73,15 @@ class SkillObservation:
 
     Attributes:
         piece: ``(P, 3)`` points of the attended dough piece(s).
-        goal: ``(G, 3)`` points of the step's sub-goal (all produced entities together).
+        goal: ``(G, 3)`` points of the step's sub-goal (all produced entities together); ``None`` for
+            scripted experts, which need none.
         tool_points: ``(T, 3)`` surface points of the skill's tool.
         tool_pose: ``(7,)`` tool position and unit quaternion (w, x, y, z).
         scene: ``(S, 3)`` the whole observed dough, for controllers that must avoid other pieces.
     """
 
     piece: np.ndarray
-    goal: np.ndarray
+    goal: np.ndarray | None
     tool_points: np.ndarray
     tool_pose: np.ndarray
     scene: np.ndarray | None = None

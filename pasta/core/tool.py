@@ -33,8 +33,9 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable
 from dataclasses import KW_ONLY, dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar, cast
 
 from pasta.core.errors import PluginValidationError
 
@@ -50,9 +51,14 @@ MAX_PRIMITIVES = 4
 Vec3 = tuple[float, float, float]
 
 
-def _vec(value: object, n: int, where: str) -> tuple[float, ...]:
+def _xyz(values: Iterable[float]) -> Vec3:
+    x, y, z = values
+    return x, y, z
+
+
+def _vec(value: Any, n: int, where: str) -> tuple[float, ...]:
     try:
-        out = tuple(float(v) for v in value)  # type: ignore[union-attr]
+        out = tuple(float(v) for v in value)
     except (TypeError, ValueError):
         raise PluginValidationError(f"{where} must be {n} numbers, got {value!r}") from None
     if len(out) != n or not all(math.isfinite(v) for v in out):
@@ -96,7 +102,7 @@ class Primitive:
 
 
 def _box_extent(offset: Vec3, half: Vec3) -> tuple[Vec3, Vec3]:
-    return (tuple(o - h for o, h in zip(offset, half)), tuple(o + h for o, h in zip(offset, half)))  # type: ignore[return-value]
+    return _xyz(o - h for o, h in zip(offset, half)), _xyz(o + h for o, h in zip(offset, half))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -120,7 +126,7 @@ class Box(Primitive):
         return math.sqrt(sum(h * h for h in self.half))
 
     def draw(self, aperture: float | None = None) -> list[tuple[str, Vec3, Vec3]]:
-        return [("cube", tuple(2 * h for h in self.half), self.offset)]  # type: ignore[list-item]
+        return [("cube", _xyz(2 * h for h in self.half), self.offset)]
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -196,22 +202,27 @@ class FingerPair(Primitive):
         """Local x distance of each finger's centre from ``offset`` at ``aperture``."""
         return aperture / 2 + self.half[0]
 
+    @property
+    def _widest(self) -> float:
+        # _check sets max_aperture (to aperture when not given) before a pair is used
+        return cast(float, self.max_aperture)
+
     def box_extent(self, aperture: float | None = None) -> tuple[Vec3, Vec3]:
-        ap = self.max_aperture if aperture is None else aperture
-        cx = self.finger_x(ap)  # type: ignore[arg-type]
+        ap = self._widest if aperture is None else aperture
+        cx = self.finger_x(ap)
         hx, hy, hz = self.half
         return _box_extent(self.offset, (cx + hx, hy, hz))
 
     def reach(self) -> float:
         hx, hy, hz = self.half
-        return math.sqrt((self.finger_x(self.max_aperture) + hx) ** 2 + hy * hy + hz * hz)  # type: ignore[arg-type]
+        return math.sqrt((self.finger_x(self._widest) + hx) ** 2 + hy * hy + hz * hz)
 
     def draw(self, aperture: float | None = None) -> list[tuple[str, Vec3, Vec3]]:
         ap = self.aperture if aperture is None else aperture
         cx = self.finger_x(ap)
-        size = tuple(2 * h for h in self.half)
+        size = _xyz(2 * h for h in self.half)
         ox, oy, oz = self.offset
-        return [("cube", size, (ox - cx, oy, oz)), ("cube", size, (ox + cx, oy, oz))]  # type: ignore[list-item]
+        return [("cube", size, (ox - cx, oy, oz)), ("cube", size, (ox + cx, oy, oz))]
 
 
 @dataclass(frozen=True)
@@ -397,9 +408,9 @@ class ToolSpec:
     def extent(self) -> tuple[Vec3, Vec3]:
         """(lo, hi) corners of the tool's local bounding box (finger pairs at their widest)."""
         boxes = [p.box_extent() for p in self.primitives]
-        lo = tuple(min(b[0][d] for b in boxes) for d in range(3))
-        hi = tuple(max(b[1][d] for b in boxes) for d in range(3))
-        return lo, hi  # type: ignore[return-value]
+        lo = _xyz(min(b[0][d] for b in boxes) for d in range(3))
+        hi = _xyz(max(b[1][d] for b in boxes) for d in range(3))
+        return lo, hi
 
     @property
     def lowest_centre(self) -> float:

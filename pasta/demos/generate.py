@@ -38,7 +38,7 @@ import zlib
 from dataclasses import asdict, dataclass
 from importlib import metadata
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -48,6 +48,9 @@ from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
 from pasta.distributed import BackendConfig, BackendError
 from pasta.demos.scene import (DEFAULT, check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles,
                                variant_config)
+
+if TYPE_CHECKING:
+    from pasta.core import Skill
 
 FORMAT = "pasta-demos/1"
 #: the training stages that read demonstrations (:attr:`pasta.core.DemoVariant.stages` names some of them)
@@ -198,7 +201,9 @@ class DemoWriter:
         approach = skill.expert_approach_pose(obs.dough, params, scene=obs.dough)
         run = run_skill(sim, skill, skill.expert(params), np.arange(len(obs.dough)), None, approach=approach,
                         idle_steps=cfg.idle_steps, park=False, record=True)
-        arrays = run.trajectory.arrays(action_dim=len(run.trajectory.action[0]) if run.trajectory.action else 1)
+        traj = run.trajectory
+        assert traj is not None  # record=True
+        arrays = traj.arrays(action_dim=len(traj.action[0]) if traj.action else 1)
         arrays["skill"] = np.array(cfg.skill)
         arrays["params"] = np.array(json.dumps({**params, "done": run.done, **_scene_record(boxes), **self.variant_record},
                                                sort_keys=True))
@@ -237,7 +242,7 @@ def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int,
     return moved
 
 
-def variant_record(cls: type, variant: str) -> dict[str, Any]:
+def variant_record(cls: type[Skill], variant: str) -> dict[str, Any]:
     """What a demonstration's ``params`` say of its scene variant: nothing for ``default``; ``variant`` and,
     for a variant kept for some training stages only (:attr:`pasta.core.DemoVariant.stages`), ``stages``."""
     if variant == DEFAULT:
@@ -342,7 +347,7 @@ def _generate(cfg: DemoConfig, backend: BackendConfig, *, progress: bool, max_at
             for outcome in map_jobs(demo_init, demo_job, asdict(cfg), todo, backend=backend, workers=workers,
                                     max_attempts=max_attempts, deadline_s=backend.deadline_s or demo_deadline(cfg),
                                     label="demo", prog="pasta demos"):
-                if outcome.ok:
+                if outcome.error is None:
                     write_npz(demo_path(cfg.out, cfg.skill, outcome.item), outcome.value)
                     steps.append(int(outcome.value["action"].shape[0]))
                 else:

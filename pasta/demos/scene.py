@@ -17,12 +17,15 @@ draw from the same samplers, so the scenes a skill is trained on are the scenes 
 from __future__ import annotations
 
 from dataclasses import fields, is_dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from pasta.core.errors import ConfigError, InputError, PastaError, did_you_mean
 from pasta.core.tool import ToolSpec
+
+if TYPE_CHECKING:
+    from pasta.core import Skill
 
 DEFAULT = "default"
 
@@ -68,19 +71,19 @@ def check_demo_skill(name: str, plugins: Any = None) -> type:
     return cls
 
 
-def variants(cls: type) -> list[str]:
+def variants(cls: type[Skill]) -> list[str]:
     """Scene variants of a skill class: ``"default"`` and the keys of its ``demo_variants``."""
     return [DEFAULT, *(v for v in cls.demo_variants if v != DEFAULT)]
 
 
-def check_variant(cls: type, variant: str) -> None:
+def check_variant(cls: type[Skill], variant: str) -> None:
     """Raise :class:`ConfigError` unless ``variant`` is one of :func:`variants` of ``cls``."""
     if variant not in variants(cls):
         raise ConfigError(f"skill '{cls.spec.name}' has no demonstration scene '{variant}'; "
                           f"its scenes: {', '.join(variants(cls))}")
 
 
-def variant_config(config: Any, cls: type, variant: str) -> Any:
+def variant_config(config: Any, cls: type[Skill], variant: str) -> Any:
     """``config`` with the fields a variant sets (:attr:`pasta.core.DemoVariant.config`) replaced."""
     check_variant(cls, variant)
     if variant == DEFAULT or not cls.demo_variants[variant].config:

@@ -101,7 +101,7 @@ class BackendConfig:
     object_store_mb: int = 256
     deadline_s: float = 0.0
 
-    def check(self) -> "BackendConfig":
+    def check(self) -> BackendConfig:
         """Fail now, before any work, when the backend cannot be used here (Ray not installed)."""
         if self.name == "ray":
             from pasta.distributed.ray_backend import import_ray

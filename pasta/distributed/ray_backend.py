@@ -118,7 +118,7 @@ def _task(init: Callable, job: Callable, setup: Any, item: Any, attempt: int, en
     yield call_job(job, state, item, attempt)
 
 
-def _death_errors(ray: Any) -> tuple[type, ...]:
+def _death_errors(ray: Any) -> tuple[type[BaseException], ...]:
     """Ray's exceptions for a task whose worker, node or result was lost (not the job's own exception)."""
     ex = ray.exceptions
     names = ("WorkerCrashedError", "NodeDiedError", "ObjectLostError", "OwnerDiedError", "LocalRayletDiedError",

@@ -160,7 +160,7 @@ def _plan(planner: Any, problem: Any, name: str) -> Plan:
         plan = planner.plan(problem)
     except PastaError:  # the planner refused the problem for a reason it names (no sequence fits, ...)
         raise
-    except Exception as exc:  # noqa: BLE001 - any failure of a third-party planner ends here, named
+    except Exception as exc:
         raise PluginRuntimeError(f"{who} raised {type(exc).__name__}: {exc}") from exc
     if not isinstance(plan, Plan):
         raise PluginRuntimeError(f"{who} returned {type(plan).__name__}, not a pasta.core.Plan")

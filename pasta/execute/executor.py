@@ -200,11 +200,12 @@ def execute_plan(
         obs = sim.observe()
         labels = entity_labels(obs.dough)
 
-        def prepare(j: int) -> tuple[tuple[int, ...], np.ndarray, list[np.ndarray]]:
+        def prepare(j: int, labels: np.ndarray = labels,
+                    dough: np.ndarray = obs.dough) -> tuple[tuple[int, ...], np.ndarray, list[np.ndarray]]:
             """Plan step ``j``: the attended observed entities, their point indices and the controller's goal."""
             step = plan.steps[j]
             before = plan.initial if j == 0 else plan.steps[j - 1].state
-            attended = attend(labels, obs.dough, step, before, encoder.z_dim, first=j == 0 and not executed)
+            attended = attend(labels, dough, step, before, encoder.z_dim, first=j == 0 and not executed)
             subgoal = step_goal(plan, j, encoder, skills=skills, num_points=perception.num_points, goal=goal,
                                 goal_labels=goal_labels)
             return attended, np.flatnonzero(np.isin(labels, attended)), subgoal

@@ -22,10 +22,11 @@ def _tool_rgba(color: str) -> tuple[float, float, float, float]:
     from pasta.io.schemas import DEFAULT_TOOL_COLOR
 
     if not color:
-        return tuple(DEFAULT_TOOL_COLOR)
+        return DEFAULT_TOOL_COLOR
     from matplotlib.colors import to_rgba
 
-    return tuple(float(v) for v in to_rgba(color))
+    r, g, b, a = to_rgba(color)
+    return float(r), float(g), float(b), float(a)
 
 
 def tool_primitives(sim: Any, poses: dict[str, np.ndarray] | None = None, apertures: dict[str, float] | None = None,

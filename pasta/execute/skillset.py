@@ -17,9 +17,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from pasta.core.errors import ConfigError, MissingComponentError
+
+if TYPE_CHECKING:
+    from pasta.core import Skill
 
 __all__ = ["SkillChoice", "choose_skills", "needs_feasibility_network", "parse_skill_names"]
 
@@ -115,11 +118,11 @@ def needs_feasibility_network(skill: Any) -> bool:
     implement :meth:`pasta.core.Skill.feasibility` itself and has no network attached yet."""
     from pasta.core import Skill
 
-    cls = skill if isinstance(skill, type) else type(skill)
+    cls: type[Skill] = skill if isinstance(skill, type) else type(skill)
     return cls.feasibility is Skill.feasibility and getattr(skill, "feasibility_model", None) is None
 
 
-def _missing(cls: type, root: Path, *, policy: bool, flat: bool) -> list[str]:
+def _missing(cls: type[Skill], root: Path, *, policy: bool, flat: bool) -> list[str]:
     """What skill class ``cls`` lacks under ``root``: one ``what (where): train with `cmd``` entry per checkpoint."""
     from pasta.io.checkpoint import checkpoint_exists
     from pasta.nn import FEASIBILITY_DIR

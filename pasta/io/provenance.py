@@ -66,7 +66,8 @@ def package_versions(names: tuple[str, ...] = PACKAGES) -> dict[str, str]:
 def cpu_info() -> dict[str, Any]:
     """The CPU model (``/proc/cpuinfo`` or :func:`platform.processor`), the logical core count and the
     instruction-set flags of :data:`CPU_FLAGS` that it has."""
-    model, flags = "", set()
+    model = ""
+    flags: set[str] = set()
     try:
         with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
             for line in f:

@@ -10,12 +10,14 @@ verify); 2 the file could not be read (not MCAP, corrupt, truncated without ``--
 from __future__ import annotations
 
 import argparse
+import functools
 import io
 import json
 import math
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
@@ -167,9 +169,9 @@ def print_timeline(reader: RunReader, topics: list[str] | None, out: TextIO, max
             print("not in file: " + ", ".join(missing), file=out)
     print("topics:", file=out)
     width = max((len(t) for t in shown), default=5)
-    for t in shown:
-        i = info[t]
-        print(f"  {t:<{width}}  {i.schema_name:<24} {i.count:>7}", file=out)
+    for topic in shown:
+        i = info[topic]
+        print(f"  {topic:<{width}}  {i.schema_name:<24} {i.count:>7}", file=out)
 
     if PLAN in shown:
         print("plan:", file=out)
@@ -260,7 +262,7 @@ def export_frames(
     track = _tool_track(reader)
     written: list[Path] = []
     for topic in chosen:
-        frames = []
+        frames: list[tuple[int, np.ndarray, np.ndarray | None]] = []
         for i, (t, pts, colors) in enumerate(reader.point_clouds(topic)):
             if i % max(every, 1) == 0 and len(frames) < max_frames:
                 frames.append((t, pts, colors))
@@ -283,9 +285,9 @@ def export_frames(
         images = [Image.open(p).convert("RGB") for p in pngs]
         gif = out_dir / f"{_slug(topic)}.gif"
         duration = max(int(round(1000.0 / max(fps, 0.1))), 20)
-        save_with(gif, lambda fh: images[0].save(fh, format="gif", save_all=True, append_images=images[1:],
-                                                 duration=duration, loop=0))
-        written += pngs + [gif]
+        save_with(gif, functools.partial(images[0].save, format="gif", save_all=True, append_images=images[1:],
+                                         duration=duration, loop=0))
+        written += [*pngs, gif]
     return written
 
 
@@ -341,7 +343,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
     order and compare the final particle positions with ``final_state.npz`` (or the last ``/dough``
     cloud). Prints the maximum absolute deviation; returns ``(deviation <= tolerance, deviation)``."""
     out = out or sys.stdout
-    say: Callable[[str], None] = lambda s: print(s, file=out)  # noqa: E731
+    say: Callable[[str], None] = lambda s: print(s, file=out)  # noqa: E731 - a one-line printer to out
     names = reader.attachment_names()
     for need in (INITIAL_STATE, SIM_CONFIG):
         if need not in names:
@@ -352,7 +354,7 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
         return False, math.inf
 
     from pasta.plugins import get_plugins
-    from pasta.sim import SimConfig, Simulator, SimState  # lazy: only verify needs the simulator
+    from pasta.sim import Simulator, SimState  # lazy: only verify needs the simulator
 
     cfg = logged_sim_config(reader)
     state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))

@@ -22,8 +22,9 @@ import errno
 import json
 import os
 import time
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from mcap.well_known import MessageEncoding, SchemaEncoding
 from mcap.writer import LIBRARY_IDENTIFIER, CompressionType, Writer
@@ -177,7 +178,7 @@ class RunLogger:
 
     # ---------------------------------------------------------------- lifecycle
 
-    def __enter__(self) -> "RunLogger":
+    def __enter__(self) -> RunLogger:
         return self
 
     def __exit__(self, exc_type: Any, exc: BaseException | None, tb: Any) -> None:

@@ -24,10 +24,11 @@ import json
 import os
 import struct
 import zlib
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Iterator, NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import zstandard
@@ -39,6 +40,7 @@ from mcap.exceptions import McapError
 from mcap.reader import SeekingReader
 from mcap.records import Attachment, Channel, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader
+from mcap.summary import Summary
 from mcap.well_known import MessageEncoding
 from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 
@@ -88,7 +90,7 @@ class RunReader:
         self._proto_decoders = ProtobufDecoderFactory()
         self._decoder_cache: dict[int, Any] = {}
         try:
-            self._file = open(self.path, "rb")
+            self._file = open(self.path, "rb")  # noqa: SIM115 - open for the reader's lifetime; close() closes it
         except OSError as e:
             hint = ""
             if not self.path.exists() and partial_path(self.path).exists():
@@ -175,14 +177,14 @@ class RunReader:
         self._file.seek(0)
         with self._errors("reading the summary"):
             self._reader = SeekingReader(self._file, validate_crcs=True, record_size_limit=max(self._size, 1024))
-            self._header = self._reader.get_header()
+            self._header: Header | None = self._reader.get_header()
             summary = self._reader.get_summary()
         if summary is None:
             # No summary section (not written by RunLogger): fall back to one streamed pass.
             self._file.seek(0)
             self._load_stream(strict=True)
             return
-        self._summary = summary
+        self._summary: Summary | None = summary
         self._schemas: dict[int, Schema] = dict(summary.schemas)
         self._channels: dict[int, Channel] = dict(summary.channels)
         stats = summary.statistics
@@ -229,8 +231,8 @@ class RunReader:
         if not self.complete and self.recover_error is None:
             self.recover_error = "file ended before the data-section end record"
         if not self.complete and whole < self._size:  # say what was left out: nothing past it is read
-            self.recover_error += (f"; kept the records up to byte {whole}, skipped the last {self._size - whole} "
-                                   f"bytes of {self._size}")
+            self.recover_error = (f"{self.recover_error}; kept the records up to byte {whole}, skipped the last "
+                                  f"{self._size - whole} bytes of {self._size}")
         elif self.complete and not strict:
             problem = self._tail_problem()  # the data section is whole: is what follows it (summary, footer)?
             if problem is not None:
@@ -251,7 +253,7 @@ class RunReader:
         if f is not None:
             f.close()
 
-    def __enter__(self) -> "RunReader":
+    def __enter__(self) -> RunReader:
         return self
 
     def __exit__(self, *exc: Any) -> None:
@@ -375,7 +377,7 @@ class RunReader:
     def point_clouds(self, topic: str) -> Iterator[tuple[int, np.ndarray, np.ndarray | None]]:
         """``(t_ns, points (N, 3) float32, colors (N, 4) uint8 or None)`` for a point-cloud topic
         (entity clouds come back concatenated, with their palette colours)."""
-        for ch, schema, m in self._raw([topic], False):
+        for _ch, schema, m in self._raw([topic], False):
             if schema is None or schema.name != S.POINT_CLOUD_SCHEMA:
                 raise TypeError(f"{topic} carries {schema.name if schema else 'schemaless'} messages, not point clouds")
             with self._errors(f"decoding a point cloud on {topic}"):
@@ -391,10 +393,16 @@ class RunReader:
 
     # ---------------------------------------------------------------- attachments / metadata
 
+    @property
+    def _index(self) -> Summary:
+        """The summary section of a file read through its index (not streamed)."""
+        assert self._summary is not None  # _open_indexed sets it whenever _stream_messages is None
+        return self._summary
+
     def attachment_names(self) -> list[str]:
         if self._stream_messages is not None:
             return [a.name for a in self._stream_attachments]
-        return [a.name for a in self._summary.attachment_indexes]
+        return [a.name for a in self._index.attachment_indexes]
 
     def attachment(self, name: str) -> bytes:
         """Bytes of attachment ``name`` (CRC-checked); KeyError listing the names if absent."""
@@ -403,7 +411,7 @@ class RunReader:
                 if a.name == name:
                     return bytes(a.data)
         else:
-            for idx in self._summary.attachment_indexes:
+            for idx in self._index.attachment_indexes:
                 if idx.name == name:
                     return self._read_attachment(idx)
         raise KeyError(f"{self.path} has no attachment {name!r}; it has {self.attachment_names()}")
@@ -430,7 +438,7 @@ class RunReader:
     def metadata_names(self) -> list[str]:
         if self._stream_messages is not None:
             return [m.name for m in self._stream_metadata]
-        return [m.name for m in self._summary.metadata_indexes]
+        return [m.name for m in self._index.metadata_indexes]
 
     def metadata(self, name: str = RUN_METADATA) -> dict[str, str]:
         """Metadata record ``name`` (default: the run metadata passed to RunLogger); {} if absent."""

@@ -20,8 +20,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 from foxglove_schemas_protobuf.Color_pb2 import Color
@@ -153,8 +154,10 @@ def encode_point_cloud(
     _stamp(msg.timestamp, t_ns)
     msg.pose.position.SetInParent()  # present, at the origin: readers that require a full pose (Rerun) accept it
     msg.pose.orientation.w = 1.0
+    fields = packed.dtype.fields
+    assert fields is not None  # a structured dtype
     for name in names:
-        offset = packed.dtype.fields[name][1]
+        offset = fields[name][1]
         ftype = PackedElementField.FLOAT32 if name in ("x", "y", "z") else PackedElementField.UINT8
         if name == "entity":
             ftype = PackedElementField.UINT32
@@ -249,10 +252,10 @@ class ToolPrimitive:
 
     name: str
     kind: str
-    size: Sequence[float]
-    position: Sequence[float]
-    quat_wxyz: Sequence[float] = (1.0, 0.0, 0.0, 0.0)
-    color: Sequence[float] = field(default=DEFAULT_TOOL_COLOR)
+    size: Sequence[float] | np.ndarray
+    position: Sequence[float] | np.ndarray
+    quat_wxyz: Sequence[float] | np.ndarray = (1.0, 0.0, 0.0, 0.0)
+    color: Sequence[float] | np.ndarray = field(default=DEFAULT_TOOL_COLOR)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -362,7 +365,7 @@ def encode_world_upright(t_ns: int = 0) -> FrameTransform:
 
 
 def encode_log(t_ns: int, level: int | str, text: str, name: str = "pasta") -> Log:
-    msg = Log(level=level_code(level), message=str(text), name=name)
+    msg = Log(level=Log.Level.ValueType(level_code(level)), message=str(text), name=name)
     _stamp(msg.timestamp, t_ns)
     return msg
 

@@ -8,7 +8,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -41,8 +41,9 @@ class PointVAEEncoder(Encoder):
             model = load_vae(weights, scope=self.scope, device=self.config.device)
         self.model = model.eval()
         self.z_dim = model.z_dim
-        self.t_low = tuple(float(v) for v in model.t_low)
-        self.t_high = tuple(float(v) for v in model.t_high)
+        # the (3,) buffers of every PointVAE
+        self.t_low = cast(tuple[float, float, float], tuple(float(v) for v in model.t_low))
+        self.t_high = cast(tuple[float, float, float], tuple(float(v) for v in model.t_high))
 
     @classmethod
     def _default_config(cls) -> Any:

@@ -8,6 +8,8 @@ positions matter. The last ``3`` numbers of a latent are the centroid ``t``.
 
 from __future__ import annotations
 
+from typing import Any
+
 import torch
 import torch.nn.functional as F
 from torch import nn
@@ -25,6 +27,9 @@ class SetFeasibility(nn.Module):
         latent_dim: ``D = Z + 3``.
         hidden: width of the per-entity and head MLPs.
     """
+
+    #: how it was trained (set when loaded from a checkpoint)
+    train_settings: dict[str, Any]
 
     def __init__(self, n_in: int, n_out: int, latent_dim: int, hidden: int = 256) -> None:
         super().__init__()

@@ -11,7 +11,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import torch
 from torch import nn
@@ -37,6 +37,10 @@ class PointVAE(nn.Module):
         fold_hidden: hidden size of the folding decoder.
     """
 
+    scale: torch.Tensor  # buffers (register_buffer)
+    t_low: torch.Tensor
+    t_high: torch.Tensor
+
     def __init__(self, z_dim: int = 2, width: int = 256, fold_hidden: int = 128) -> None:
         super().__init__()
         self.z_dim = z_dim
@@ -50,7 +54,7 @@ class PointVAE(nn.Module):
         self.register_buffer("t_high", torch.ones(3))
 
     def config(self) -> dict[str, int]:
-        return {"z_dim": self.z_dim, "width": self.pointnet.out_dim, "fold_hidden": self.fold1[0].out_features}
+        return {"z_dim": self.z_dim, "width": self.pointnet.out_dim, "fold_hidden": cast(nn.Linear, self.fold1[0]).out_features}
 
     def encode_stats(self, centred: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``centred (B, P, 3)`` (world units, centroid removed) -> ``(mean (B, Z), logvar (B, Z))``."""

@@ -210,7 +210,8 @@ def read_ply(path: str | Path, name: str = "cloud", *, max_file_points: int = MA
     nl = raw.find(b"\n", end)
     body_start = len(raw) if nl < 0 else nl + 1
     header = raw[:end].decode("ascii", errors="replace").splitlines()
-    fmt, elements = None, []  # elements: [name, count, [(prop, type) or (prop, None) for lists]]
+    fmt = None
+    elements: list[tuple[str, int, list[tuple[str, str | None]]]] = []  # (name, count, [(prop, type or None: a list)])
     for line in header[1:]:
         words = line.split()
         if not words or words[0] in ("comment", "obj_info"):
@@ -224,7 +225,7 @@ def read_ply(path: str | Path, name: str = "cloud", *, max_file_points: int = MA
                 raise InputError(f"{str(path)!r}: bad element line {line!r}") from None
             if count < 0:
                 raise InputError(f"{str(path)!r}: bad element line {line!r}")
-            elements.append([words[1], count, []])
+            elements.append((words[1], count, []))
         elif words[0] == "property" and elements:
             if len(words) >= 5 and words[1] == "list":
                 elements[-1][2].append((words[-1], None))
@@ -251,7 +252,7 @@ def read_ply(path: str | Path, name: str = "cloud", *, max_file_points: int = MA
             if e is vertex:
                 break
             skip += e[1]
-        rows = [ln for ln in lines[skip:skip + vertex[1]]]
+        rows = list(lines[skip:skip + vertex[1]])
         expected = f"{str(path)!r}: expected {vertex[1]} vertex rows of {len(names)} values"
         if len(rows) != vertex[1]:
             raise InputError(expected)
@@ -268,10 +269,10 @@ def read_ply(path: str | Path, name: str = "cloud", *, max_file_points: int = MA
         if any(t is None for _, t in e[2]):
             raise InputError(f"{str(path)!r}: element {e[0]!r} with list properties before the vertices is not supported")
         offset += e[1] * int(sum(np.dtype(t).itemsize for _, t in e[2]))
-    dtype = np.dtype([(n, order + t) for n, t in vertex[2]])
+    dtype = np.dtype([(n, f"{order}{t}") for n, t in vertex[2]])  # no list properties (t is not None): checked
     need = vertex[1] * dtype.itemsize
     if len(raw) - offset < need:
         raise InputError(f"{str(path)!r}: the file ends before its {vertex[1]} vertices ({len(raw) - offset} of "
                          f"{need} bytes)")
-    data = np.frombuffer(raw, dtype=dtype, count=vertex[1], offset=offset)
-    return np.stack([data[c].astype(np.float64) for c in "xyz"], 1)
+    records = np.frombuffer(raw, dtype=dtype, count=vertex[1], offset=offset)
+    return np.stack([records[c].astype(np.float64) for c in "xyz"], 1)

@@ -282,8 +282,8 @@ def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
     if "demos" in stages:
         from pasta.demos import check_demo_skill
 
-        for skill in skills:
-            check_demo_skill(skill)
+        for s in skills:
+            check_demo_skill(s)
     for name, skill in overrides:
         if name not in stages:
             print(f"pasta pipeline: warning: {name}.* settings given but stage {name} is not in "
@@ -300,7 +300,7 @@ def plan(cfg: PipelineConfig, overrides: Overrides) -> list[Unit]:
                 units.append(_unit(cfg, st, vname, skill, vvalues))
     if cfg.only:
         wanted = _names(cfg.only, "only")
-        known = [u.name for u in units] + [s for s in stages]
+        known = [u.name for u in units] + list(stages)
         _check_names(wanted, known, "unit")
         units = [u for u in units if u.name in wanted or u.stage in wanted]
     return units

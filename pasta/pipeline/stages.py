@@ -27,6 +27,7 @@ from pasta.nn import COST_DIR, FEASIBILITY_DIR, VAE_DIR
 from pasta.policy import POLICY_DIR
 
 if TYPE_CHECKING:
+    from pasta.core import Skill
     from pasta.pipeline.run import PipelineConfig, Unit
 
 __all__ = ["STAGES", "Stage", "stage"]
@@ -187,7 +188,7 @@ class DemosStage(Stage):
                 changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
                 print(f"pasta pipeline: warning: {unit.name}: the existing demonstrations were generated with other "
                       f"{', '.join(changed)}; they are kept (delete {unit.directory} to regenerate them)", file=sys.stderr)
-        return dict(record.get("metrics", {})) if same and missing == 0 else None
+        return dict(record.get("metrics", {})) if record is not None and same and missing == 0 else None
 
     def prepare(self, unit: Unit, record: Mapping[str, Any] | None, current: dict[str, Any], *, resume: bool,
                 force: bool) -> str:
@@ -366,7 +367,7 @@ def stage(name: str) -> Stage:
 # ---------------------------------------------------------------------------------------------- helpers
 
 
-def skill_class(name: str) -> type:
+def skill_class(name: str) -> type[Skill]:
     from pasta.plugins import get_plugins
 
     return get_plugins().skills.load(name)

@@ -54,7 +54,7 @@ _EXPORTS = {
     "Clearance": "pasta.planning.clearance",
 }
 
-__all__ = sorted(_EXPORTS)
+__all__ = sorted(_EXPORTS)  # noqa: PLE0605 - the lazy names of _EXPORTS, one list to keep
 
 
 def __getattr__(name: str) -> Any:

@@ -59,6 +59,6 @@ def signature_structures(signature: Sequence[tuple[int, int]], start_size: int,
             free = [i for i in range(k) if i not in fixed_now]
             for choice in itertools.combinations(free, n):
                 kept = [i for i in range(k) if i not in choice]
-                grown.append((steps + [choice], [m + kept.index(p) for p in fixed_now]))
+                grown.append(([*steps, choice], [m + kept.index(p) for p in fixed_now]))
         rows, k = grown, k + m - n
     return [steps for steps, _ in rows]

@@ -53,7 +53,7 @@ class Group:
 
     def clamp(self, latents: torch.Tensor, encoder: Encoder) -> torch.Tensor:
         """``latents (B, sum_h M_h, D)`` with every centroid clamped into its entity's box (a copy)."""
-        if self.t_low is None:
+        if self.t_low is None or self.t_high is None:  # (set together)
             return encoder.clamp(latents)
         return clamp_centroids(latents, self.t_low, self.t_high, encoder.z_dim)
 
@@ -238,9 +238,9 @@ def sample_candidates(
         raise InputError(f"num_samples must be >= 1, got {num_samples}")
     if not sequences:
         raise InputError("no skill sequence to search")
-    sequences = [tuple(s) for s in sequences]
+    seqs = [tuple(s) for s in sequences]
     names: list[str] = []
-    for s in sequences:
+    for s in seqs:
         names.extend(n for n in s if n not in names)
     dim = start.shape[-1]
     # per-entity centroid boxes only when some skill records its own (otherwise the encoder's, as always)
@@ -248,7 +248,7 @@ def sample_candidates(
     fixed = tuple((int(i), int(j)) for i, j in fixed)
     n_fixed = len(fixed)
     parts: dict[tuple[tuple[int, int], ...], list[tuple]] = {}
-    for si, seq in enumerate(sequences):
+    for si, seq in enumerate(seqs):
         sig = signature_of(seq, skills)
         k = start.shape[0]
         for n, m in sig:  # the set sizes are the same for every sample: check them up front
@@ -280,6 +280,7 @@ def sample_candidates(
             k += m - n
         total = sum(m for _, m in sig)
         lat = encoder.sample_prior(count * total, draw).to(start.dtype).reshape(count, total, dim)
+        box: tuple[torch.Tensor, torch.Tensor] | tuple[None, None]
         if own_boxes:  # centroids drawn in the encoder's box, mapped into each slot's box (same where they agree)
             low, high = (b.to(start.dtype).expand(count, -1, -1) for b in _slot_boxes(seq, skills, encoder))
             e_low, e_high = (torch.tensor(b, dtype=start.dtype) for b in (encoder.t_low, encoder.t_high))
@@ -306,7 +307,7 @@ def sample_candidates(
                 torch.cat([it[5][1] for it in items]) if own_boxes else None,
             )
         )
-    return CandidateBatch(start, goal, sequences, names, groups, fixed=fixed)
+    return CandidateBatch(start, goal, seqs, names, groups, fixed=fixed)
 
 
 def _enumerate_structures(signature, start_size: int, fixed_rows: Sequence[int]) -> list[torch.Tensor]:
@@ -381,6 +382,7 @@ def roll_states(batch: CandidateBatch, latents: Sequence[torch.Tensor], clearanc
             u_in = _take(state, grp.inputs[h])
             steps.append((u_in, new))
             if clearance is not None:
+                assert ext is not None and widths is not None  # set with clearance
                 p, ext = clearance.step_penalty(u_in, _take(ext, grp.inputs[h]), new, _take(state, grp.kept[h]),
                                                 _take(ext, grp.kept[h]), widths[grp.seq, h])
                 penalty = penalty + p
@@ -446,7 +448,7 @@ def evaluate(
             if len(ps) == 1:
                 cols.append(ps[0][1])
             else:
-                order = torch.cat([i for i, _ in ps])
+                order = torch.cat([i for i, _ in ps if i is not None])  # (all are: several calls have an index)
                 cols.append(torch.cat([p for _, p in ps])[order.argsort()])
         feas.append(torch.stack(cols, 1))
     cost, matching = set_costs(batch, finals, cost_model, frozen=frozen)
@@ -467,12 +469,13 @@ def set_costs(
     """
     g_goal = batch.goal.shape[0]
     if frozen is None and batch.fixed:
-        rows, cols = [], []
+        fixed_rows, fixed_cols = [], []
         for grp, f in zip(batch.groups, finals):
+            assert grp.fixed_pos is not None  # every group has it when the batch has fixed entities
             r, c = fixed_matching(f, batch.goal, grp.fixed_pos, [j for _, j in batch.fixed], cost_model)
-            rows.append(r)
-            cols.append(c)
-        return set_costs(batch, finals, cost_model, frozen=FrozenMatching(rows, cols))
+            fixed_rows.append(r)
+            fixed_cols.append(c)
+        return set_costs(batch, finals, cost_model, frozen=FrozenMatching(fixed_rows, fixed_cols))
     if frozen is not None:  # only the matched pairs, all groups in one call
         a = [_take(f, r) for f, r in zip(finals, frozen.rows)]
         b = [batch.goal[c] for c in frozen.cols]
@@ -493,10 +496,10 @@ def set_costs(
         c = cost_model.pairwise(fin, batch.goal.unsqueeze(0).expand(fin.shape[0], -1, -1))  # (B, K, G)
         total, assign = min_cost_matching(c if k <= g_goal else c.transpose(1, 2))
         sizes = [finals[g].shape[0] for g in gs]
-        for g, part, a in zip(gs, torch.split(total, sizes), torch.split(assign, sizes)):
+        for g, part, matched in zip(gs, torch.split(total, sizes), torch.split(assign, sizes)):
             out[g] = part
-            ident = torch.arange(a.shape[1]).expand(a.shape[0], -1).contiguous()
-            rows[g], cols[g] = (ident, a) if k <= g_goal else (a, ident)
+            ident = torch.arange(matched.shape[1]).expand(matched.shape[0], -1).contiguous()
+            rows[g], cols[g] = (ident, matched) if k <= g_goal else (matched, ident)
     return out, FrozenMatching(rows, cols)
 
 
@@ -518,7 +521,7 @@ def fixed_matching(final: torch.Tensor, goal: torch.Tensor, fixed_pos: torch.Ten
     f = len(fixed_goal)
     taken = torch.zeros(b, k, dtype=torch.long).scatter_(1, fixed_pos, 1)
     free_pos = torch.argsort(taken, dim=1, stable=True)[:, : k - f]  # (B, K - F), ascending
-    gset = set(int(j) for j in fixed_goal)
+    gset = {int(j) for j in fixed_goal}
     free_goal = torch.tensor([j for j in range(goal.shape[0]) if j not in gset], dtype=torch.long)
     kf, gf = k - f, free_goal.shape[0]
     with torch.no_grad():

@@ -63,9 +63,11 @@ def rollout(
     origin: list[int | None] = list(range(state.shape[1]))  # which observed entity each position still is
     for name, inputs, new in zip(skeleton, attention, subgoals):
         inputs, kept = list(inputs), list(kept_indices(state.shape[1], inputs))
-        origin = [None] * new.shape[1] + [origin[i] for i in kept]
+        produced: list[int | None] = [None] * new.shape[1]  # new entities are no observed one
+        origin = produced + [origin[i] for i in kept]
         feas.append(skills[name].feasibility(state[:, inputs], new))
         if clearance is not None:
+            assert ext is not None  # set with clearance
             sweep = state.new_full((batch,), clearance.sweep.get(name, 0.0))
             p, ext = clearance.step_penalty(state[:, inputs], ext[:, inputs], new, state[:, kept], ext[:, kept], sweep)
             penalty = penalty + p
@@ -119,10 +121,12 @@ def build_plan(
         clearance = (Clearance.from_problem(problem.encoder, problem.obs, problem.goal, skills=problem.skills)
                      if clearance_weight > 0 else None)
         result = rollout(problem, skeleton, attention, batched, clearance)
-        score = plan_score(result.feasibility, result.cost + clearance_weight * result.penalty, cost_weight=cost_weight,
+        penalty = result.penalty
+        assert penalty is not None  # rollout() always sets it
+        score = plan_score(result.feasibility, result.cost + clearance_weight * penalty, cost_weight=cost_weight,
                            floor=floor)
         if clearance is not None:
-            info["clearance_penalty"] = float(result.penalty[0])
+            info["clearance_penalty"] = float(penalty[0])
     steps = tuple(
         PlanStep(
             skill=name,

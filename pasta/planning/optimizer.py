@@ -16,7 +16,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import torch
 
@@ -145,7 +145,8 @@ def _refine(result: SearchResult, sequences: Sequence[Sequence[str]], count: int
     The winner is then the best over both rounds. ``per_sequence`` rows of refined sequences gain
     ``"refined": True``, their ``samples`` (left at the end) add up and their ``top_scores`` merge.
     """
-    ranked = sorted((i for i, b in enumerate(result.best) if b is not None), key=lambda i: -result.best[i][3])[:count]
+    scored = [(i, b[3]) for i, b in enumerate(result.best) if b is not None]
+    ranked = [i for i, _ in sorted(scored, key=lambda t: -t[1])][:count]
     if not ranked:
         return result
     again = optimise([sequences[i] for i in ranked], refining=True)
@@ -155,10 +156,14 @@ def _refine(result: SearchResult, sequences: Sequence[Sequence[str]], count: int
         row["top_scores"] = sorted(row["top_scores"] + new["top_scores"], reverse=True)[: len(row["top_scores"])]
         row["samples"] += new["samples"]
         row["refined"] = True
-        if again.best[j] is not None and again.best[j][3] > best[i][3]:  # ties keep the first round's
-            best[i], row["score"] = again.best[j], again.best[j][3]
-    win = max(range(len(best)), key=lambda i: (best[i][3] if best[i] is not None else -math.inf, -i))
-    skeleton, attention, subgoals, score = best[win]
+        first, second = best[i], again.best[j]
+        if second is not None and first is not None and second[3] > first[3]:  # ties keep the first round's
+            best[i], row["score"] = second, second[3]
+    final = [b[3] if b is not None else -math.inf for b in best]
+    win = max(range(len(best)), key=lambda i: (final[i], -i))
+    winner = best[win]
+    assert winner is not None  # a ranked sequence has a best
+    skeleton, attention, subgoals, score = winner
     return SearchResult(skeleton, attention, subgoals, score, per_sequence, result.samples + again.samples,
                         result.evaluations + again.evaluations, best=best)
 
@@ -213,7 +218,8 @@ class _Optimiser:
             self._report(it, iters, scores)
             if last:
                 break
-            grads = torch.autograd.grad(-sum(o.sum() for o in obj), xs, allow_unused=True)
+            total = cast(torch.Tensor, sum(o.sum() for o in obj))  # (obj is never empty)
+            grads = torch.autograd.grad(-total, xs, allow_unused=True)
             step = it + 1
             c1, c2 = 1 - b1**step, 1 - b2**step
             new = []
@@ -319,7 +325,8 @@ def _select(batch: CandidateBatch, scores: list[torch.Tensor], top_k: int) -> Se
     row = best - sum(sizes[:group])
     skeleton, attention, subgoals = batch.candidate(group, row)
     starts = torch.tensor(sizes).cumsum(0) - torch.tensor(sizes)
-    per_sequence, best_of = [], []
+    per_sequence: list[dict[str, Any]] = []
+    best_of: list[tuple[tuple[str, ...], list[tuple[int, ...]], list[torch.Tensor], float] | None] = []
     for si, s in enumerate(batch.sequences):
         mask = seq == si
         mine = flat[mask]

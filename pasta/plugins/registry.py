@@ -267,7 +267,7 @@ def discover(group: str = ENTRY_POINT_GROUP, extra: dict[str, Any] | None = None
         origin[key] = (name, IN_PROCESS, "")
 
     candidates: dict[str, dict[str, list[PluginInfo]]] = {kind: {} for kind in KINDS}
-    for key, plugin in pm.list_name_plugin():
+    for key, _plugin in pm.list_name_plugin():
         plugin_name, dist, version = origin.get(key, (key, "(unknown)", ""))
         others = [p for n, p in pm.list_name_plugin() if n != key]  # call this plugin's hooks alone
         for kind, (hook_name, _) in KINDS.items():

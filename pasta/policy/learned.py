@@ -106,7 +106,7 @@ class LearnedPolicy:
         from pasta.core import ToolPose
 
         try:
-            base = skill.approach_pose(piece, goal, scene=scene)
+            base = skill.approach_pose(piece, goal, scene=scene)  # type: ignore[call-arg]  # beyond the contract
         except TypeError:
             base = skill.approach_pose(piece, goal)
         return ToolPose((self.reset.tool_x(skill, piece, goal), *base.position[1:]), base.yaw)
@@ -162,7 +162,7 @@ class PolicyController(Controller):
         self.rng = np.random.default_rng(self.policy.seed)
         self.steps = self.first_step
 
-    def _pick(self, cloud: np.ndarray, n: int, what: str) -> np.ndarray:
+    def _pick(self, cloud: np.ndarray | None, n: int, what: str) -> np.ndarray:
         cloud = np.asarray(cloud, np.float32)
         if cloud.ndim != 2 or cloud.shape[1] != 3 or len(cloud) == 0:
             raise InputError(f"policy observation: {what} must be a non-empty (N, 3) array, got shape {cloud.shape}")

@@ -31,6 +31,7 @@ Output: ``action (B, A)`` in ``[-1, 1]`` (tanh) and ``done (B,)`` logits.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -119,7 +120,7 @@ def _check_keys(what: str, d: dict[str, Any], keys: Any) -> None:
 
 def _head(sizes: list[int]) -> nn.Sequential:
     layers: list[nn.Module] = []
-    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         layers.append(nn.Linear(a, b))
         if i < len(sizes) - 2:
             layers.append(nn.ReLU())

@@ -18,9 +18,10 @@ its inputs and the loaded regressor.
 
 from __future__ import annotations
 
+import itertools
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -83,7 +84,7 @@ def x_at_share(cloud: np.ndarray, share: float) -> float:
 
 def _mlp(sizes: Sequence[int], last_act: bool = True) -> nn.Sequential:
     layers: list[nn.Module] = []
-    for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
+    for i, (a, b) in enumerate(itertools.pairwise(sizes)):
         layers.append(nn.Linear(a, b))
         if last_act or i < len(sizes) - 2:
             layers.append(nn.ReLU())
@@ -93,6 +94,8 @@ def _mlp(sizes: Sequence[int], last_act: bool = True) -> nn.Sequential:
 class ResetPoseNet(nn.Module):
     """``points (B, N, 4 or 5)`` (x, y, z, source: 0 dough / 1 goal[, piece share]) -> ``(B, R)``: the offset in metres, then
     ``R - 1`` unitless values (``R = cfg.outputs``)."""
+
+    units: torch.Tensor  # a buffer (register_buffer)
 
     def __init__(self, cfg: ResetConfig | None = None) -> None:
         super().__init__()
@@ -189,7 +192,7 @@ class ResetPose:
         return x_at_share(piece, y) - float(np.asarray(piece, np.float64)[:, 0].mean()) if self.x_share else y
 
 
-def load_reset(directory: str | Path) -> ResetPose | None:
+def load_reset(directory: str | os.PathLike) -> ResetPose | None:
     """The regressor in ``DIR/reset.*``, or ``None`` when the directory has none."""
     from pasta.io.checkpoint import checkpoint_exists, load_checkpoint
 

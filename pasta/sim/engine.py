@@ -4,7 +4,7 @@ One substep = 4 kernel launches:
 
 1. ``constitutive`` (parallel over particles): trial F = (I + dt C) F, SVD, von Mises return mapping
    on log singular values, fixed-corotated stress, and the per-particle APIC "affine" matrix.
-2. ``scatter`` (P2G, serialized loop): quadratic B-spline scatter of mass and momentum into a
+2. ``p2g`` (scatter, serialized loop): quadratic B-spline scatter of mass and momentum into a
    (m v, m) grid, also tracking the bounding box of touched nodes. A serialized loop lets Taichi
    demote the float atomics to plain adds (about 3x faster than the atomic parallel scatter on
    CPU) and makes the result bitwise deterministic.
@@ -88,16 +88,16 @@ def ensure_taichi(arch: str = "cpu", cpu_threads: int = 2, fast_math: bool | Non
             )
         return
     archs = {"cpu": ti.cpu, "cuda": ti.cuda, "gpu": ti.gpu, "vulkan": ti.vulkan, "metal": ti.metal}
-    kwargs = dict(
-        arch=archs[arch],
-        default_fp=ti.f32,
-        default_ip=ti.i32,
-        fast_math=bool(fast_math),
-        offline_cache=True,
-        offline_cache_file_path=cache_dir(),
-        random_seed=0,
-        log_level=ti.WARN,
-    )
+    kwargs = {
+        "arch": archs[arch],
+        "default_fp": ti.f32,
+        "default_ip": ti.i32,
+        "fast_math": bool(fast_math),
+        "offline_cache": True,
+        "offline_cache_file_path": cache_dir(),
+        "random_seed": 0,
+        "log_level": ti.WARN,
+    }
     if arch == "cpu" and cpu_threads > 0:
         kwargs["cpu_max_num_threads"] = cpu_threads
     os.makedirs(cache_dir(), exist_ok=True)
@@ -245,7 +245,7 @@ class Engine:
 
         # ---------------------------------------------------------------- constitutive model
         @ti.func
-        def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):
+        def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
             """One exact Jacobi rotation zeroing S[p, q]; returns (J^T S J, V J)."""
             spq = S[p, q]
             d = 0.5 * (S[q, q] - S[p, p])
@@ -399,7 +399,7 @@ class Engine:
                     vel = ti.Vector([vel[0] * scale, 0.0, vel[2] * scale])
                 # free-slip side walls and ceiling
                 for d in ti.static(range(3)):
-                    if ti.static(d != 1):
+                    if ti.static(d != 1):  # noqa: SIM102 - a compile-time branch: no runtime `and` with it
                         if I[d] < WALL_CELLS and vel[d] < 0:
                             vel[d] = 0.0
                     if I[d] > n - WALL_CELLS and vel[d] > 0:
@@ -441,7 +441,7 @@ class Engine:
         def refresh_svd():
             """Recompute the warm-start rotations from F with a full SVD (once per env step)."""
             for p in range(n_p[None]):
-                U, sig, V = ti.svd(F[p])
+                _U, _sig, V = ti.svd(F[p])
                 Vr[p] = V
 
         @ti.kernel
@@ -450,7 +450,7 @@ class Engine:
                 constitutive_p(p)
 
         @ti.kernel
-        def scatter():
+        def p2g():
             """P2G. Serial mode: one serialized loop (Taichi demotes the atomics to plain adds:
             ~3x faster than parallel atomics on CPU, bitwise deterministic)."""
             lo = ti.Vector([n, n, n])
@@ -549,7 +549,7 @@ class Engine:
 
         self._refresh_svd = refresh_svd
         self._constitutive = constitutive
-        self._scatter = scatter
+        self._scatter = p2g
         self._grid_op = grid_op
         self._g2p = g2p
         self._substep_fused = substep_fused
@@ -588,7 +588,7 @@ class Engine:
         m = self.max_particles
 
         def pad(a: np.ndarray, shape: tuple) -> np.ndarray:
-            out = np.zeros((m,) + shape, dtype=np.float32)
+            out = np.zeros((m, *shape), dtype=np.float32)
             out[:n] = a
             return out
 

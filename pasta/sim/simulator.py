@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import IO, ClassVar, Sequence
+from typing import IO, Any, ClassVar
 
 import numpy as np
 
@@ -63,11 +64,13 @@ class SimState:
     _fields: ClassVar[tuple[str, ...]] = ("x", "v", "F", "C", "tools", "obs_index")
 
     def copy(self) -> SimState:
-        return SimState(*(getattr(self, k).copy() for k in self._fields), step=self.step, tool_names=tuple(self.tool_names))
+        return SimState(self.x.copy(), self.v.copy(), self.F.copy(), self.C.copy(), self.tools.copy(),
+                        self.obs_index.copy(), step=self.step, tool_names=tuple(self.tool_names))
 
     def save(self, path: str | Path | IO[bytes]) -> None:
         """Write an .npz (no pickle) to a file object, or whole to a path (:func:`pasta.core.files.save_with`)."""
-        arrays = {k: np.asarray(getattr(self, k)) for k in self._fields}
+        # (values typed Any: np.savez's stub checks **kwds against its allow_pickle flag)
+        arrays: dict[str, Any] = {k: np.asarray(getattr(self, k)) for k in self._fields}
         names = np.array(list(self.tool_names), dtype=str)
         if isinstance(path, (str, os.PathLike)):
             save_with(path, lambda fh: np.savez(fh, step=np.int64(self.step), tool_names=names, **arrays))
@@ -75,7 +78,7 @@ class SimState:
             np.savez(path, step=np.int64(self.step), tool_names=names, **arrays)
 
     @classmethod
-    def load(cls, path: str | Path) -> SimState:
+    def load(cls, path: str | Path | IO[bytes]) -> SimState:
         """Read an .npz of :meth:`save`. A state saved before tools were plugins (no ``tool_names``, five tool
         columns) is refused with one error: replay it with the pasta release that wrote it."""
         with np.load(path, allow_pickle=False) as z:

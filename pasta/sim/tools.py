@@ -168,13 +168,14 @@ class ToolTable:
     def park_row(self, name: str) -> np.ndarray:
         """(6,) state row of the parked tool: its park centre, yaw 0, spin 0, its starting aperture."""
         s = self.spec(name)
+        assert s.park is not None  # ToolSpec requires it of a tool with primitives
         return np.array([*s.park, 0.0, 0.0, s.default_aperture], dtype=np.float64)
 
     def aperture_range(self, name: str) -> tuple[float, float]:
         fp = self.spec(name).finger_pair
-        return (0.0, 0.0) if fp is None else (fp.min_aperture, fp.max_aperture)  # type: ignore[return-value]
+        return (0.0, 0.0) if fp is None else (fp.min_aperture, fp.max_aperture)  # type: ignore[return-value]  # _check set max_aperture
 
-    def kernel_arrays(self) -> dict[str, np.ndarray]:
+    def kernel_arrays(self) -> dict[str, np.ndarray | np.int32]:
         """The engine's static tool fields: kind (MAX_TOOLS, MAX_PRIMS) int32, geo (MAX_TOOLS, MAX_PRIMS,
         GEO) float32, n_prims (MAX_TOOLS,) int32, bound2 (MAX_TOOLS,) float32 (squared skip radius),
         friction (MAX_TOOLS,) float32, n_tools () int32."""
@@ -195,7 +196,7 @@ class ToolTable:
                 if isinstance(p, Capsule):
                     geo[t, k, 3:5] = (p.radius, p.half_length)
                 else:
-                    geo[t, k, 3:6] = p.half  # type: ignore[attr-defined]
+                    geo[t, k, 3:6] = p.half  # type: ignore[attr-defined]  # every kind but the capsule has one
                 if isinstance(p, WedgeBlade):
                     a = math.radians(p.half_angle)
                     geo[t, k, 6:8] = (math.cos(a), math.sin(a))

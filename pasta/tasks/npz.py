@@ -25,20 +25,19 @@ def write_npz(path: str | Path, arrays: Mapping[str, np.ndarray], *, compress: b
     """Write ``arrays`` (name -> array; strings become 0-d unicode arrays) to ``path`` atomically."""
     path = Path(path)
     method = zipfile.ZIP_DEFLATED if compress else zipfile.ZIP_STORED
-    with atomic_write(path) as fh:
-        with zipfile.ZipFile(fh, "w", compression=method) as zf:
-            for name, value in arrays.items():
-                arr = np.asarray(value)
-                if arr.dtype == object:
-                    raise InputError(f"write_npz: array '{name}' has dtype object (would need pickle)")
-                buf = io.BytesIO()
-                if arr.ndim and not arr.flags.c_contiguous:  # (ascontiguousarray would turn 0-d into 1-d)
-                    arr = np.ascontiguousarray(arr)
-                np.lib.format.write_array(buf, arr, allow_pickle=False)
-                info = zipfile.ZipInfo(f"{name}.npy", date_time=_EPOCH)
-                info.compress_type = method
-                info.external_attr = 0o644 << 16
-                zf.writestr(info, buf.getvalue())
+    with atomic_write(path) as fh, zipfile.ZipFile(fh, "w", compression=method) as zf:
+        for name, value in arrays.items():
+            arr = np.asarray(value)
+            if arr.dtype == object:
+                raise InputError(f"write_npz: array '{name}' has dtype object (would need pickle)")
+            buf = io.BytesIO()
+            if arr.ndim and not arr.flags.c_contiguous:  # (ascontiguousarray would turn 0-d into 1-d)
+                arr = np.ascontiguousarray(arr)
+            np.lib.format.write_array(buf, arr, allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=_EPOCH)
+            info.compress_type = method
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, buf.getvalue())
     return path
 
 

@@ -140,15 +140,15 @@ class GoalMonitor(StepMonitor):
     def should_run(self, piece: np.ndarray, goal: np.ndarray | None, *, keeps_count: bool,
                    watch: bool, at_goal: float | None = None) -> Stop | None:
         tolerance = self.at_goal if at_goal is None else float(at_goal)
-        if watch and keeps_count and goal is not None and len(piece) and tolerance > 0:
-            if self.distance(piece, goal) < tolerance:
-                return Stop.AT_GOAL
+        if (watch and keeps_count and goal is not None and len(piece) and tolerance > 0
+                and self.distance(piece, goal) < tolerance):
+            return Stop.AT_GOAL
         return None
 
     def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool) -> None:
         self._limit = int(limit)
         self._watch = bool(watch) and goal is not None
-        self._goal = self._subset(goal) if self._watch else None
+        self._goal = self._subset(goal) if self._watch and goal is not None else None
         self.initial = self.best = self._measure(piece) if self._watch else 0.0
         self.above = 0  # env steps in a row above the regression band
         self.overran = 0  # env steps run past the controller's cap
@@ -262,14 +262,17 @@ def run_skill(
     obs = sim.observe()
     idx = piece_indices(piece, len(obs.dough))
     limit = int(getattr(skill, "max_steps", 50)) if max_steps is None else int(max_steps)
-    if approach is None and callable(getattr(controller, "approach_pose", None)):
+    own_approach = getattr(controller, "approach_pose", None) if approach is None else None
+    if callable(own_approach):
         # a controller with its own (learned) start pose; None falls back to the skill's
-        approach = controller.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)
+        approach = own_approach(obs.dough[idx], goal_points, scene=obs.dough)
     if approach is None:
+        # scene= goes beyond the contract's two arguments (the TypeError fallback); a None goal reaches only
+        # skills that take one (heuristic controllers run with a sub-goal)
         try:
-            approach = skill.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)
+            approach = skill.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)  # type: ignore[call-arg,arg-type]
         except TypeError:  # a skill whose approach_pose has the two-argument contract signature
-            approach = skill.approach_pose(obs.dough[idx], goal_points)
+            approach = skill.approach_pose(obs.dough[idx], goal_points)  # type: ignore[arg-type]
     sim.set_tool_pose(tool, approach.position, yaw=approach.yaw)
     obs = sim.observe()
     traj = Trajectory() if record else None

@@ -130,7 +130,7 @@ def check_plan(plan: Plan, problem: PlanningProblem, *, cost_weight: float | Non
         bound = floor_prod * math.exp(-cost_weight * max(plan.final_cost, 0.0))
         _require(plan.score <= bound + atol, f"score {plan.score} exceeds the objective's value {bound} (feasibilities "
                  f"{[s.feasibility for s in plan.steps]}, cost {plan.final_cost}, cost_weight {cost_weight})")
-    _require(plan.to_json() and Plan.from_json(plan.to_json()).to_json() == plan.to_json(), "plan does not survive a JSON round trip")
+    _require(bool(plan.to_json()) and Plan.from_json(plan.to_json()).to_json() == plan.to_json(), "plan does not survive a JSON round trip")
 
 
 def check_planner(planner: Planner, problem: PlanningProblem | None = None, *, name: str | None = None) -> Plan:

@@ -83,7 +83,7 @@ class SkillContract:
         else:
             x0 = box_particles((0.5, sim.floor_y + 0.04, 0.5), (0.16, 0.08, 0.07), 1500, rng)
 
-        def run(controller: Any, approach: Any, goal: np.ndarray, max_steps: int, who: str) -> None:
+        def run(controller: Any, approach: Any, goal: np.ndarray | None, max_steps: int, who: str) -> None:
             sim.set_tool_pose(skill.tool, approach.position, yaw=approach.yaw)
             view = None
             for step in range(max_steps):
@@ -120,7 +120,7 @@ class SkillContract:
             if goal is None:  # no expert to make a reachable goal: ask for the piece moved a little
                 goal = piece + np.array([0.03, 0.0, 0.0], np.float32)
             try:
-                approach = skill.approach_pose(piece, goal, scene=piece)
+                approach = skill.approach_pose(piece, goal, scene=piece)  # type: ignore[call-arg]  # beyond the contract
             except TypeError:  # the two-argument contract signature
                 approach = skill.approach_pose(piece, goal)
             run(skill.controller(), approach, goal, self.contract_controller_steps, "heuristic controller")

@@ -10,10 +10,11 @@ are whole scenes.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
+from torch import nn
 
 from pasta.core.errors import InputError
 from pasta.nn.cost import EPS, MODULE, PairCost
@@ -76,9 +77,9 @@ def entity_pairs(demos: list[EncodedDemo], cfg: CostTrainConfig, *, seed: int = 
     second = rng.integers(0, len(latents), len(first))
     same = rng.random(len(first)) < cfg.same_demo_fraction
     members = [np.flatnonzero(owner.numpy() == k) for k in range(len(demos))]
-    for i in np.flatnonzero(same):
-        group = members[int(owner[first[i]])]
-        second[i] = group[rng.integers(len(group))]
+    for row in np.flatnonzero(same):
+        group = members[int(owner[first[row]])]
+        second[row] = group[rng.integers(len(group))]
     first_t, second_t = torch.from_numpy(first), torch.from_numpy(second)
     a, b = latents[first_t], latents[second_t].clone()
     offsets = torch.zeros(len(first), 3)
@@ -112,7 +113,7 @@ class CostTask:
         self.train_a, self.train_b, self.train_c = train
         self.val_a, self.val_b, self.val_c = val if len(val[0]) else train
         with torch.no_grad():  # start at the mean log-distance so early epochs are not spent on the offset
-            self.model.net[-1].bias.fill_(float(torch.log(self.train_c + EPS).mean()))
+            cast(nn.Linear, self.model.net[-1]).bias.fill_(float(torch.log(self.train_c + EPS).mean()))
 
     def config(self) -> dict[str, Any]:
         from pasta.train.feasibility import scope_config, train_dict

@@ -21,7 +21,7 @@ from __future__ import annotations
 import sys
 import time
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -130,7 +130,7 @@ def table(results: dict[str, dict[str, list[dict[str, Any]]]]) -> str:
     for skill, recs in results.items():
         cells, means = [], {}
         for c in CONTROLLERS:
-            if c in recs and recs[c]:
+            if recs.get(c):
                 v = np.array([r["ni"] for r in recs[c]])
                 means[c] = float(v.mean())
                 cells.append(f"{v.mean():.3f} ({v.std():.3f})")

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import functools
 from dataclasses import asdict, dataclass
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch
@@ -215,7 +215,7 @@ class FeasibilityTask:
             a, b = pair
             logits = self.model.logits(a, b)
             terms.append(w * F.binary_cross_entropy_with_logits(logits, torch.full_like(logits, label)))
-        return sum(terms)
+        return cast(torch.Tensor, sum(terms))  # (the positives are always there)
 
     @torch.no_grad()
     def validate(self) -> dict[str, float]:

@@ -67,7 +67,10 @@ class TrainTask(Protocol):
     """
 
     module: str
-    model: torch.nn.Module
+
+    @property
+    def model(self) -> torch.nn.Module:
+        """The network (read-only here: a task's own attribute may be a subclass)."""
 
     def config(self) -> dict[str, Any]:
         """JSON description saved beside the weights (sizes, normalisation, skill...)."""

@@ -12,7 +12,7 @@ demonstrations (split by demonstration, seeded).
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -154,8 +154,8 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
     if cfg.start_at_reset:
         demos = [from_reset_pose(d) for d in demos]
     train_demos, val_demos = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=seed)
-    kw = dict(dough_points=cfg.dough_points, tool_points=cfg.tool_points, goal_points=cfg.goal_points,
-              hindsight_ratio=cfg.hindsight_ratio)
+    kw: dict[str, Any] = {"dough_points": cfg.dough_points, "tool_points": cfg.tool_points, "goal_points": cfg.goal_points,
+          "hindsight_ratio": cfg.hindsight_ratio}
     train = DemoSet(train_demos, noise=cfg.noise, **kw)
     val = DemoSet(val_demos or train_demos, noise=0.0, **kw)
     if tool is None:
@@ -209,7 +209,7 @@ def train_policy(skill: str, data: str | Path, out: str | Path, *, cfg: PolicyTr
 LOOP_DEFAULTS: dict[str, Any] = {"epochs": 40, "batch_size": 32, "lr": 1e-3}
 
 
-def policy_configs(overrides: dict[str, Any] | None = None) -> tuple[LoopConfig, PolicyTrainConfig]:
+def policy_configs(overrides: Mapping[str, Any] | None = None) -> tuple[LoopConfig, PolicyTrainConfig]:
     """The loop's and the policy's settings from ``key=value`` overrides over :data:`LOOP_DEFAULTS` (a typo
     fails with the closest valid key)."""
     from pasta.config.overrides import build_many
@@ -219,7 +219,7 @@ def policy_configs(overrides: dict[str, Any] | None = None) -> tuple[LoopConfig,
     return loop, cfg
 
 
-def train_command(data: str | Path, out: str | Path, overrides: dict[str, str] | None = None) -> dict[str, Any]:
+def train_command(data: str | Path, out: str | Path, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """``pasta train policy skill=NAME data=DIR out=MODELS [key=value ...]`` as a function.
 
     Keys: ``skill`` (required), the loop's (:class:`~pasta.train.loop.LoopConfig`), the policy's

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -86,7 +87,7 @@ class DemoSet:
     def sample(self, rows: np.ndarray, rng: np.random.Generator) -> Batch:
         """The batch of transitions ``rows`` (indices into ``self.index``), goals and noise drawn from ``rng``."""
         p, tp, gp = self.sizes
-        out = {k: [] for k in ("dough", "tool", "goal", "action", "done", "step", "pose")}
+        out: dict[str, list[Any]] = {k: [] for k in ("dough", "tool", "goal", "action", "done", "step", "pose")}
         for r in rows:
             di, t = self.index[r]
             demo = self.demos[di]

@@ -12,7 +12,7 @@ of the expert's align phase (:func:`align_offset`: the first step with a vertica
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -270,7 +270,7 @@ class ResetTrainConfig:
 METRICS = "reset_metrics.json"
 
 
-def reset_configs(overrides: dict[str, Any] | None = None, *, command: str = "pasta train reset") -> tuple[LoopConfig, ResetTrainConfig]:
+def reset_configs(overrides: Mapping[str, Any] | None = None, *, command: str = "pasta train reset") -> tuple[LoopConfig, ResetTrainConfig]:
     """The loop's and the trainer's settings from ``key=value`` overrides over :data:`LOOP_DEFAULTS` (a
     typo fails with the closest valid key)."""
     from pasta.config.overrides import build_many

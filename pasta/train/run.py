@@ -11,7 +11,7 @@ feasibility and cost read the scene VAE ``OUT/vae``.
 from __future__ import annotations
 
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -53,7 +53,9 @@ def train(module: str, data: str | Path, out: str | Path, overrides: Mapping[str
     """
     loop, cfg = parse_overrides(module, overrides or {})
     with torch_threads(loop.threads):  # data preparation too, not only the loop
-        return {"vae": _train_vae, "feasibility": _train_feasibility, "cost": _train_cost}[module](Path(data), Path(out), loop, cfg)
+        trainers: dict[str, Callable[[Path, Path, LoopConfig, Any], dict[str, Any]]] = {
+            "vae": _train_vae, "feasibility": _train_feasibility, "cost": _train_cost}
+        return trainers[module](Path(data), Path(out), loop, cfg)
 
 
 def _split(data: Path, cfg: Any, loop: LoopConfig, stage: str, skills: list[str] | None = None):
@@ -121,7 +123,7 @@ def _train_feasibility(data: Path, out: Path, loop: LoopConfig, cfg: Feasibility
     task = FeasibilityTask(cfg.skill, n_in, n_out, tuples["train"], tuples["val"], encoder, cfg, seed=loop.seed)
     directory = out / FEASIBILITY_DIR / cfg.skill
     result = fit(task, loop, directory)
-    figures = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
+    figures: dict[str, Any] = {f"heldout_{k[4:]}": v for k, v in task.validate().items() if k != "val_loss"}
     figures.update(skill=cfg.skill, train_positives=len(task.train_in), heldout_positives=len(task.val_in),
                    heldout_hard_negatives=len(task.val_hard[0]))
     return _finish(directory, "feasibility", result, figures, data, len(train), len(val))

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -53,7 +53,7 @@ def stop_index(probs: Sequence[float], actions: Sequence[np.ndarray], threshold:
     step, an all-zero one ends it without stepping; ``len(probs)`` when the rule never fires.
     ``max_steps`` > 0: the controller also reports done at its ``max_steps``-th action."""
     for i, (p, a) in enumerate(zip(probs, actions)):
-        if i + 1 >= min_steps and p > threshold or 0 < max_steps <= i + 1:
+        if (i + 1 >= min_steps and p > threshold) or 0 < max_steps <= i + 1:
             return i + 1 if np.any(np.clip(np.asarray(a, np.float32), -1.0, 1.0)) else i
     return len(probs)
 
@@ -190,7 +190,7 @@ PARTIAL = "select.partial.jsonl"
 RESULT = "select.json"
 
 
-def select_config(overrides: dict[str, Any] | None = None) -> SelectConfig:
+def select_config(overrides: Mapping[str, Any] | None = None) -> SelectConfig:
     """:class:`SelectConfig` from ``key=value`` overrides (a typo fails with the closest valid key, a
     malformed grid with what is wrong)."""
     from pasta.config.overrides import build
@@ -249,13 +249,14 @@ def _select(models: str | Path, skill: str, cfg: SelectConfig, *, out: str | Pat
         rows.append(row)
     rules = [[float(t), int(m), int(c)] for c in caps for m in min_steps for t in thresholds]
     result = {"rules": rules, "ni": [r["ni"] for r in rows], "steps": [r["steps"] for r in rows]}
-    (t, m, c), best = select_rule(result)
-    rule = {"done_threshold": t, "min_steps": m, "max_steps": c}
+    (t, m, cap), best = select_rule(result)
+    rule = {"done_threshold": t, "min_steps": m, "max_steps": cap}
     doc = {"skill": skill, "seed": cfg.seed, "n": cfg.n, "models": str(models), "policy": str(directory),
            "settings": key["config"],
            "selected": {**rule, "mean_ni": best}, **result}
     if out is not None:
         write_json(out, doc, indent=1)
+    if partial is not None:  # (set exactly when out is)
         partial.unlink(missing_ok=True)
     if cfg.write:
         write_rule(directory, rule)

@@ -55,12 +55,14 @@ class PrefixBeamPlanner(LatentPlanner):
         gen = self.generator(problem)
         t0 = time.perf_counter()
         timings = {"enumerate": 0.0, "beam": 0.0, "sample": 0.0, "optimise": 0.0}
+        stages: list[dict]
         if problem.skeleton is not None:
             sequences, stages = problem.skeletons(), []  # the given skeleton (cardinality checked)
         else:
             sequences, stages, prefix_timings = self._beam(problem, gen)
             timings["beam"] = prefix_timings
-        results, polish = [], []
+        results: list[SearchResult] = []
+        polish: list[dict] = []
         if int(cfg.polish) > 0 and problem.skeleton is None:
             results += self._polish(problem, sequences, gen, polish)
         else:
@@ -159,7 +161,7 @@ class PrefixBeamPlanner(LatentPlanner):
         k_goal, floor = len(problem.goal), FLOOR
         exact, horizon = self._lengths(problem)
 
-        @functools.lru_cache(maxsize=None)
+        @functools.cache
         def reaches(k: int, steps: int) -> bool:
             """Can ``k`` entities become ``k_goal`` in exactly ``steps`` steps?"""
             if steps == 0:
@@ -190,17 +192,17 @@ class PrefixBeamPlanner(LatentPlanner):
                 if not names:
                     continue
                 # one search for all children of this parent: they share the start set parent.states[lo]
-                res = search(problem, [(parent.skills + (n,))[lo:] for n in names], pcfg, gen, method=self.method,
+                res = search(problem, [(*parent.skills, n)[lo:] for n in names], pcfg, gen, method=self.method,
                              start=parent.states[lo])
                 evaluations += res.evaluations
                 searches += 1
                 found = {tuple(b[0]): b for b in res.best if b is not None}  # keyed by window, whatever the order
                 for name in names:
-                    best = found.get((parent.skills + (name,))[lo:])
+                    best = found.get((*parent.skills, name)[lo:])
                     if best is None:
                         continue
                     window_skills, window_attention, window_subgoals, score = best
-                    skills = parent.skills + (name,)
+                    skills = (*parent.skills, name)
                     states, log_feas = list(parent.states[: lo + 1]), list(parent.log_feas[: lo + 1])
                     with torch.no_grad():
                         for step, inputs, new in zip(window_skills, window_attention, window_subgoals):
@@ -216,7 +218,8 @@ class PrefixBeamPlanner(LatentPlanner):
             # the best `width` per entity count: the partial set cost ignores unmatched goal entities, so
             # prefixes with fewer entities than the goal look better than they are and must not crowd out
             # the others
-            kept, per_count = [], {}
+            kept: list[int] = []
+            per_count: dict[int, int] = {}
             for i in order:
                 n = len(children[i].states[-1])
                 if per_count.get(n, 0) < int(cfg.width):
@@ -236,11 +239,11 @@ def _neighbours(skills: tuple[str, ...], names) -> list[tuple[str, ...]]:
     """Skill sequences one edit from ``skills``: one skill inserted, deleted or replaced, or two neighbours swapped."""
     out = []
     for i in range(len(skills) + 1):
-        out += [skills[:i] + (n,) + skills[i:] for n in names]
+        out += [(*skills[:i], n, *skills[i:]) for n in names]
     for i in range(len(skills)):
         out.append(skills[:i] + skills[i + 1:])
-        out += [skills[:i] + (n,) + skills[i + 1:] for n in names if n != skills[i]]
+        out += [(*skills[:i], n, *skills[i + 1:]) for n in names if n != skills[i]]
     for i in range(len(skills) - 1):
         if skills[i] != skills[i + 1]:
-            out.append(skills[:i] + (skills[i + 1], skills[i]) + skills[i + 2:])
+            out.append((*skills[:i], skills[i + 1], skills[i], *skills[i + 2:]))
     return list(dict.fromkeys(out))

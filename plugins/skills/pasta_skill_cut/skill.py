@@ -20,9 +20,9 @@ least ``min_travel``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -191,6 +191,7 @@ class CutController(Controller):
         if self.plan is None:
             self.reset(obs)
         plan, cfg = self.plan, self.cfg
+        assert plan is not None  # reset() makes it
         x, y = float(obs.tool_pose[0]), float(obs.tool_pose[1])
         low = self.bottom - cfg.tip_depth + KNIFE_TIP
         high = self.top + cfg.clearance + KNIFE_TIP
@@ -248,6 +249,7 @@ class CutController(Controller):
         it, or the re-entry pushed it). From its near side when it must move away from the knife, else
         lift the knife over it, lower it on its far side and push back."""
         plan, cfg = self.plan, self.cfg
+        assert plan is not None  # (act() made it)
         piece = np.asarray(obs.piece, np.float64)
         if self.phase == "fix":
             self.side_x = x
@@ -324,11 +326,11 @@ class CutSkill(Skill):
     #: 6-33 mm short (docs/policies.md, "crs_twice with learned policies")
     #: Only the reset pose learns from them (``stages``): the policy, its feasibility and the planner's
     #: networks stay as trained on the default demos.
-    demo_variants = {"long": DemoVariant(config={"offset_max": 0.25, "shift_max": 0.12}, pipeline_demos=150,
+    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {"long": DemoVariant(config={"offset_max": 0.25, "shift_max": 0.12}, pipeline_demos=150,
                                          stages=("reset",),
                                          description="a 0.3-0.35 long dough cut up to 0.25 from its end, the knife "
                                                      "travelling up to 0.12 (for the learned reset pose only)")}
-    training_defaults = {
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "feasibility": {"stride": 3, "shift_per_positive": 5, "shift_entities": "one", "shift_max": 0.25},
         "policy": {"start_at_reset": True},
         "reset": {},  # the reset stage runs for the cut, with the trainer's defaults (the shipped regressor's)
@@ -378,7 +380,7 @@ class CutSkill(Skill):
         return self.approach_pose(piece)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in KNIFE_PARK), 0.0)
+        return ToolPose(KNIFE_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``cut_x``: the piece's left end + U(offset_min, offset_max) (both parts keep >= offset_min);

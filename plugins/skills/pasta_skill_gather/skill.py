@@ -16,6 +16,8 @@ thickness), so the controllers need nothing but a :class:`pasta.core.SkillObserv
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -100,7 +102,7 @@ class GatherSkill(Skill):
     spec = SPEC
     sweep_half_width = FINGER_HALF[2]
     #: the shipped networks' settings (docs/learning.md, "The board skills"; docs/policies.md)
-    training_defaults = {"feasibility": {"stride": 4, "epochs": 8}}
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {"feasibility": {"stride": 4, "epochs": 8}}
 
     def __init__(self, config: GatherConfig | None = None) -> None:
         super().__init__(config if config is not None else GatherConfig())
@@ -117,7 +119,7 @@ class GatherSkill(Skill):
         return approach(as_points(piece, "piece"), self.config)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in GRIPPER_PARK), 0.0)
+        return ToolPose(GRIPPER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``width`` U(width_min, width_max), at most ``max_fraction`` of the lumps' extent along the axis."""

@@ -18,6 +18,9 @@ piece that low drove it into the board's edge until the step limit (LiftSpread s
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
 import numpy as np
 
 from pasta.core import Controller, InputError, Skill, SkillObservation, ToolPose
@@ -102,7 +105,7 @@ class LiftSkill(Skill):
     #: the shipped networks' settings (docs/learning.md, "The board skills": near misses made the feasibility
     #: worse; docs/policies.md, "lift and gather": without the goal offset the policy carried every piece the
     #: same way and never stopped; with it, its own done head stops it, so no stopping rule is chosen)
-    training_defaults = {
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "feasibility": {"stride": 4, "epochs": 8},
         "policy": {"goal_feature": True},
     }
@@ -122,7 +125,7 @@ class LiftSkill(Skill):
         return scoop_pose(as_points(piece, "piece"), self.config.scoop_depth)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in SPATULA_PARK), 0.0)
+        return ToolPose(SPATULA_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """A target centroid uniform in the config's box (on the board) and the config's surface height."""

@@ -17,6 +17,8 @@ centroid.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -78,7 +80,7 @@ def placement(piece: np.ndarray, target_xz: np.ndarray, scene: np.ndarray | None
             if slide and not (slide - PUSHER_HALF[2] + 0.01 <= side[0] and side[1] <= slide + PUSHER_HALF[2] - 0.01):
                 continue  # the slid paddle would no longer span the piece
             candidates.append((angle, n, slide))
-    for angle, n, slide in candidates:
+    for _angle, n, slide in candidates:
         back = -float(np.percentile((piece[:, [0, 2]] - c) @ n, 0.5))
         centre = c - n * (back + PUSHER_HALF[0] + cfg.gap) + np.array([-n[1], n[0]]) * slide
         yaw = math.atan2(-n[1], n[0])
@@ -158,11 +160,11 @@ class PushSkill(Skill):
     heuristic_fields: tuple[str, ...] = ("max_face_slide", "align_after")
     #: ``scene=wide``: pieces up to 0.25 long anywhere on the right of the workspace, pushed to targets
     #: with x up to 0.7 (the default box ends at 0.32), as cut_rearrange needs
-    demo_variants = {"wide": DemoVariant(config={"target_x_max": 0.7}, pipeline_demos=150,
+    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {"wide": DemoVariant(config={"target_x_max": 0.7}, pipeline_demos=150,
                                          description="pieces up to 0.25 long on the right, targets with x up to 0.7")}
     #: the policy sees its step count, the tool pose and the goal offset (with these and the wide demonstrations,
     #: 0.96 on held-out wide configs; the one-frame policy of the default demonstrations alone, 0.45)
-    training_defaults = {
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "feasibility": {"stride": 4, "epochs": 20},
         "policy": {"goal_feature": True},
     }
@@ -184,7 +186,7 @@ class PushSkill(Skill):
         return placement(as_points(piece, "piece"), np.array([params["target_x"], params["target_z"]]), scene, self.config)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in PUSHER_PARK), 0.0)
+        return ToolPose(PUSHER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """A target centroid uniform in the config's box, at least ``min_distance`` from the piece."""

@@ -20,6 +20,8 @@ when the piece reaches both goal ends (within ``end_tolerance``); it also waits 
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -114,7 +116,7 @@ class RollController(Controller):
         long_enough = (hi - lo) >= self.length - cfg.length_tolerance and thickness(obs.piece) <= self.max_thickness
         if self.span is not None:  # heuristic: the piece also covers the goal's extent (both ends)
             long_enough = long_enough and lo <= self.span[0] + cfg.end_tolerance and hi >= self.span[1] - cfg.end_tolerance
-        if at_height and (long_enough and self.passes >= cfg.min_passes or self.passes >= cfg.max_passes):
+        if at_height and ((long_enough and self.passes >= cfg.min_passes) or self.passes >= cfg.max_passes):
             return np.zeros(4, np.float32), True
         inset = cfg.turn_inset * ROLLER_RADIUS
         end_lo, end_hi = lo + inset, hi - inset
@@ -123,7 +125,7 @@ class RollController(Controller):
             end_lo, end_hi = max(end_lo, self.span[0] + goal_inset), min(end_hi, self.span[1] - goal_inset)
         if end_hi < end_lo:
             end_lo = end_hi = 0.5 * (end_lo + end_hi)
-        if self.direction > 0 and s >= end_hi - 1e-6 or self.direction < 0 and s <= end_lo + 1e-6:
+        if (self.direction > 0 and s >= end_hi - 1e-6) or (self.direction < 0 and s <= end_lo + 1e-6):
             self.direction = -self.direction
             if at_height:
                 self.passes += 1
@@ -150,12 +152,12 @@ class RollSkill(Skill):
     #: execution step and the tool pose; the stopping-rule grid (docs/policies.md)
     #: ``board``: a dough cube on the raised board of the lift package (LiftSpread's second step); without
     #: these the roll's feasibility network only ever saw pieces resting on the floor
-    demo_variants = {"board": DemoVariant(config={}, pipeline_demos=100,
+    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {"board": DemoVariant(config={}, pipeline_demos=100,
                                           description="a dough cube (side 0.055-0.07) on the lift package's raised board"),
                      "pieces": DemoVariant(config={}, pipeline_demos=0,
                                            description="pieces as cutting and pushing leave them: 0.09-0.135 long, "
                                                        "0.07-0.15 deep, anywhere in z 0.2-0.8")}
-    training_defaults = {
+    training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "feasibility": {"stride": 4, "epochs": 20, "shift_per_positive": 5},
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7,0.8", "min_steps": "1,20", "max_steps": "0,60"},
     }
@@ -183,7 +185,7 @@ class RollSkill(Skill):
         return ToolPose((float(c[0]), top + ROLLER_RADIUS + self.config.clearance, float(c[2])), yaw)
 
     def park_pose(self) -> ToolPose:
-        return ToolPose(tuple(float(v) for v in ROLLER_PARK), 0.0)
+        return ToolPose(ROLLER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
         """``height`` U(height_min, height_max); ``length`` the length the piece's volume (bounding box)
@@ -225,4 +227,6 @@ class RollSkill(Skill):
         it) for the ``board`` variant; none otherwise."""
         if variant != "board":
             return {}
-        return {"board": ToolPose(standing_tool("board").stand, 0.0)}
+        stand = standing_tool("board").stand
+        assert stand is not None  # standing_tool() checks it
+        return {"board": ToolPose(stand, 0.0)}

@@ -9,7 +9,9 @@ the ground-truth chain of scripted experts with the random parameters drawn here
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -132,7 +134,7 @@ class CRSTask(Task):
     """CutRearrangeSpread: cut a short piece off, push it to the spreading area, roll it flat."""
 
     name = "crs"
-    config_class = CRSConfig
+    config_class: ClassVar[type[TaskConfig]] = CRSConfig
     skeleton = ("cut", "push", "roll")
     summary = "cut, push the cut piece to the spreading area, roll it flat"
     z_spread = 0.2
@@ -172,7 +174,7 @@ class CRSTwiceTask(Task):
     config_class = CRSTwiceConfig
     skeleton = ("cut", "cut", "push", "push", "roll", "roll")
     #: the paper gives CRS-Twice's skeleton to every method and plans it with a receding horizon (3 of 6 steps)
-    run_defaults = {"planner": "receding_horizon", "skeleton": "task"}
+    run_defaults: ClassVar[Mapping[str, Any]] = {"planner": "receding_horizon", "skeleton": "task"}
     summary = "cut two pieces off a long dough, move both, flatten both (3 pieces, 6 steps)"
 
     def build(self, gen: Generation) -> None:
