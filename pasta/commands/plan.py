@@ -163,7 +163,8 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     seen = perceive_and_plan(clouds["obs"], clouds["goal"], planner=planner, planner_name=cfg.planner.name,
                              encoder_name=cfg.encoder.name,
-                             skills=skills, encoder=encoder, cost=cost, horizon=int(cfg.horizon or DEFAULT_HORIZON),
+                             skills=skills, encoder=encoder, cost=cost,
+                             horizon=int(cfg.horizon or len(skeleton or ()) or DEFAULT_HORIZON),
                              seed=int(cfg.seed), skeleton=skeleton, perception=perception, check=check)
     labels = {name: point_labels(loaded[name], kept[name], kept_points[name], seen.clouds[name], seen.labels[name])
               for name in ("obs", "goal")}
