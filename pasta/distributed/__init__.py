@@ -37,11 +37,13 @@ from typing import Any
 from pasta.core.errors import ConfigError, PastaError, did_you_mean
 
 __all__ = ["BACKENDS", "BackendConfig", "BackendError", "Outcome", "map_jobs", "split_backend_args",
-           "worker_state", "TEST_KILL_ENV", "MAX_ATTEMPTS"]
+           "worker_state", "TEST_KILL_ENV", "MAX_ATTEMPTS", "MAX_WORKERS"]
 
 BACKENDS = ("local", "ray")
 #: attempts per item before it is reported as failed (a worker death costs one attempt)
 MAX_ATTEMPTS = 2
+#: the most workers a command's ``workers=`` asks for (more is a typo, not a machine)
+MAX_WORKERS = 1024
 TEST_KILL_ENV = "PASTA_TEST_KILL"
 #: environment variables of the driver that every worker gets (caches, test hooks): ``PASTA_*``
 SHIPPED_ENV_PREFIX = "PASTA_"
@@ -115,7 +117,8 @@ def split_backend_args(items: Sequence[str] | Mapping[str, Any]) -> tuple[Backen
             else:
                 from pasta.config.validate import check_int
 
-                setattr(cfg, attr, check_int(value, key, low=0 if attr == "num_cpus" else 80))
+                setattr(cfg, attr, check_int(value, key, low=0 if attr == "num_cpus" else 80,
+                                             high=MAX_WORKERS if attr == "num_cpus" else 1 << 30))
             ray_given.append(key)
         else:
             rest[key] = value
