@@ -229,14 +229,14 @@ def invoke(argv: list[str]) -> tuple[int, str]:
     return code, err.getvalue()
 
 
-def assert_clean(argv: list[str], work: Path | None = None) -> int:
-    """Exit 0, or exit 2 with exactly one ``pasta CMD: error:`` line (other stderr lines are warnings or
-    notes), never a traceback; with ``work``, that directory is left empty."""
+def assert_clean(argv: list[str], work: Path | None = None, ok: tuple[int, ...] = (0,)) -> int:
+    """Exit 0 (or another code of ``ok``), or exit 2 with exactly one ``pasta CMD: error:`` line (other stderr
+    lines are warnings or notes), never a traceback; with ``work``, that directory is left empty."""
     code, err = invoke(argv)
     prog = "pasta " + argv[0]
     lines = err.splitlines()
     assert "Traceback" not in err, (argv, err)
-    assert code in (0, 2), (argv, code, err)
+    assert code in (*ok, 2), (argv, code, err)
     errors = [line for line in lines if line.startswith(f"{prog}: error: ")]
     if code == 2:
         assert len(errors) == 1 and lines[-1] == errors[0], (argv, err)
@@ -387,7 +387,11 @@ def test_replay(sandbox, data):
 @SETTINGS
 @given(data=st.data())
 def test_plugins(sandbox, data):
-    assert_clean(["plugins", *data.draw(options("plugins"))], sandbox / "work")
+    from pasta.plugins import get_plugins
+
+    # `pasta plugins` exits 1 when an installed plugin failed to load (the environment's, not a usage error)
+    broken = bool(get_plugins(report=False).failures)
+    assert_clean(["plugins", *data.draw(options("plugins"))], sandbox / "work", ok=(0, 1) if broken else (0,))
 
 
 def test_every_command_is_covered():
@@ -434,6 +438,13 @@ def test_run_horizon_50_never_reaches_the_planner(tmp_path, monkeypatch):
                                                                   "pasta plan's is 3)")
 
 
+def _planners_of_this_checkout() -> bool:
+    import pasta_planner_exhaustive
+
+    return Path(pasta_planner_exhaustive.__file__).resolve().is_relative_to(Path(__file__).resolve().parents[1])
+
+
+@pytest.mark.skipif(not _planners_of_this_checkout(), reason="the planner plugins are imported from another checkout")
 @pytest.mark.parametrize("override", ["planner.max_horizon=50", "planner=prefix_beam planner.max_horizon=11",
                                       "planner=receding_horizon planner.window=50"])
 def test_planner_horizons_share_the_bound(sandbox, override):

@@ -50,7 +50,7 @@ def build(cls: type, values: Mapping[str, Any], *, command: str = "") -> Any:
     """An instance of dataclass ``cls`` with ``values`` (strings or typed) applied over its defaults.
 
     Every value is checked here, before the command does any work: its type (omegaconf, from the field's
-    annotation), no ``${...}`` interpolation, a finite number for every float field
+    annotation), no ``${...}`` interpolation, finite floats and 64-bit integers in every field
     (:func:`~pasta.config.validate.check_field_values`), and the dataclass's own ``__post_init__`` checks.
     """
     from pasta.config.validate import check_field_values, check_literal, plain_type_message
