@@ -16,8 +16,16 @@ from pasta.core.errors import PastaError
 from pasta.core.files import OutputLock
 
 
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, ``pasta CMD: error: ...``, as every other error
+    of the command line (exit code 2); ``pasta CMD --help`` shows the usage."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {one_line(message)} (`{self.prog} --help` shows the usage)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="pasta", description="Plan and execute multi-tool dough manipulation (PASTA).")
+    parser = _Parser(prog="pasta", description="Plan and execute multi-tool dough manipulation (PASTA).")
     parser.add_argument("--version", action="version", version=f"pasta {pasta.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for info in sorted(pkgutil.iter_modules(pasta.commands.__path__), key=lambda m: m.name):
@@ -27,20 +35,30 @@ def build_parser() -> argparse.ArgumentParser:
         cmd = sub.add_parser(info.name.replace("_", "-"), help=module.HELP, description=module.HELP)
         module.add_arguments(cmd)
         cmd.set_defaults(handler=module.run)
+    parser.set_defaults(commands=sub.choices)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    args, extra = build_parser().parse_known_args(argv)
+    if extra:  # named by the command's own parser: `pasta run: error: unrecognized arguments: ...`
+        args.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     with warnings.catch_warnings():
         _plugin_warnings_as_lines()
         try:
             return int(args.handler(args) or 0)
         except PastaError as exc:  # a usage error (exit 2), or a plugin that failed at work (its exit_code, 1)
-            print(f"pasta {args.command}: error: {exc}", file=sys.stderr)
-            return int(getattr(exc, "exit_code", 2))
+            code = int(getattr(exc, "exit_code", 2))
+            print(f"pasta {args.command}: error: {one_line(str(exc)) if code == 2 else exc}", file=sys.stderr)
+            return code
         finally:
             OutputLock.release_all()  # the outputs this command claimed (pasta.core.files)
+
+
+def one_line(text: str) -> str:
+    """``text`` with its line breaks and other unprintable characters escaped (``\\n``, ``\\x1e``), so that an
+    error message that quotes a value given on the command line stays one line."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _plugin_warnings_as_lines() -> None:

@@ -61,6 +61,16 @@ class EvalArgs:
     # most N Ray tasks in flight (backend=ray; 0: as many as the cluster has CPUs). docs/scaling.md
     workers: int = 0
 
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_choice, check_int
+        from pasta.distributed import MAX_WORKERS
+        from pasta.tasks.base import TEST_SEED_BASE, VAL_SEED_BASE
+
+        # at most 1000 configs: the test seeds 1000, 1001, ... stop short of the validation seeds 2000, ...
+        check_int(self.num, "num", low=1, high=VAL_SEED_BASE - TEST_SEED_BASE)
+        check_choice(self.split, "split", ("test", "val"))
+        check_int(self.workers, "workers", low=0, high=MAX_WORKERS)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.formatter_class = argparse.RawDescriptionHelpFormatter
@@ -181,7 +191,7 @@ def episode_deadline(session: Any) -> float:
 
 def run(args: argparse.Namespace) -> int:
     from pasta.commands.run import print_skill_warning, split_command_keys
-    from pasta.config.validate import check_choice, check_int, check_output_dir, check_output_file
+    from pasta.config.validate import check_output_dir, check_output_file
     from pasta.distributed import BackendError, map_jobs, split_backend_args
     from pasta.tasks import fixed_test_seeds, fixed_val_seeds
 
@@ -192,21 +202,18 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("`pasta eval` needs task=NAME (e.g. task=crs)")
     if any(i.partition("=")[0] == "seed" for i in rest):
         raise ConfigError("pasta eval runs the fixed test seeds (1000, 1001, ...); use num=N, not seed=")
-    check_int(opts.num, "num", low=1)
-    check_choice(opts.split, "split", ("test", "val"))
     check_output_dir(opts.out, "out")  # before any model is loaded: a bad out= must not cost an evaluation
-    check_int(opts.workers, "workers", low=0)
     from pasta.config import load_config
 
-    load_config(rest)  # every key and value is checked before a model is loaded or a simulator starts
-    setup = {"overrides": list(rest)}
-    state = eval_init(setup)  # this process's session: the result path, the summary, the episodes with workers=0
-    session, machine = state.session, state.machine
-    print_skill_warning(session)
-    path = result_path(opts.out, session.cfg, rest, opts.split)
+    cfg = load_config(rest)  # every key and value is checked before a model is loaded or a simulator starts
+    path = result_path(opts.out, cfg, rest, opts.split)
     check_output_file(path, "out")  # e.g. a directory of the result file's name in out=
     refuse_link(path, "out")  # the result file is appended to: a link there would be followed
-    OutputLock(path, "out").acquire()  # one writer per result file (held until this process ends)
+    OutputLock(path, "out").acquire()  # one writer per result file (released when the command ends)
+    setup = {"overrides": list(rest)}
+    state = eval_init(setup)  # this process's session: the summary, the episodes with workers=0
+    session, machine = state.session, state.machine
+    print_skill_warning(session)
     path.parent.mkdir(parents=True, exist_ok=True)
     done: dict[int, dict[str, Any]] = {}
     if opts.resume and path.exists():

@@ -115,11 +115,13 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     plan written but flagged unreachable; errors raise :class:`PastaError`)."""
     import numpy as np
 
-    from pasta.config.validate import check_output_dir
+    from pasta.config.validate import check_input_file, check_output_dir
 
     mine, overrides = split_arguments(list(items))
     camera = camera_options(mine)
     out = check_output_dir(mine["out"], "out")  # before anything is computed: a bad out= must not cost a plan
+    for key in ("obs", "goal"):
+        check_input_file(mine[key], key)
     OutputLock(out, "out").acquire()  # one writer per out=: a second plan stops here
     if plugins is None:
         from pasta.plugins import get_plugins
@@ -143,7 +145,9 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     skeleton = tuple(split_names(cfg.skeleton, "skeleton")) or None
     if skeleton == ("task",):
         raise ConfigError("skeleton=task needs a task (pasta run / pasta eval); give the skills: skeleton=cut,push,roll")
-    frame = camera["frame"]
+    choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins)  # as `pasta run`
+    choice.require(skeleton or (), "skeleton=")
+    frame = camera["frame"]  # every key is checked: the work starts
     loaded, clouds, kept, kept_points = {}, {}, {}, {}
     for name in ("obs", "goal"):
         loaded[name] = read_cloud(mine[name], name)
@@ -152,10 +156,8 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
 
     encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
     cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
-    choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins)  # as `pasta run`
     if choice.warning():
         print(choice.warning(), file=sys.stderr)
-    choice.require(skeleton or (), "skeleton=")
     skills = [plugins.skills.create(n, section(cfg, f"skill.{n}") if n in cfg.skill else None) for n in choice.names]
     needs = [s for s in skills if needs_feasibility_network(s)]
     if needs:
@@ -165,7 +167,8 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
     seen = perceive_and_plan(clouds["obs"], clouds["goal"], planner=planner, planner_name=cfg.planner.name,
                              encoder_name=cfg.encoder.name,
-                             skills=skills, encoder=encoder, cost=cost, horizon=int(cfg.horizon or DEFAULT_HORIZON),
+                             skills=skills, encoder=encoder, cost=cost,
+                             horizon=int(cfg.horizon or len(skeleton or ()) or DEFAULT_HORIZON),
                              seed=int(cfg.seed), skeleton=skeleton, perception=perception, check=check)
     labels = {name: point_labels(loaded[name], kept[name], kept_points[name], seen.clouds[name], seen.labels[name])
               for name in ("obs", "goal")}

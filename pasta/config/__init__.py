@@ -24,19 +24,36 @@ from typing import Any
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException, ValidationError
 
+from pasta.config.overrides import from_items
 from pasta.config.run import METHODS, CheckConfig, ExecuteConfig, PerceptionConfig, RunConfig
+from pasta.config.validate import check_literal
+from pasta.config.validate import plain_type_message as _plain
 from pasta.core import PluginConfig
 from pasta.core.errors import ConfigError, did_you_mean
 
-__all__ = ["GROUPS", "CheckConfig", "ExecuteConfig", "PerceptionConfig", "RunConfig", "default_yaml", "load_config",
-           "section", "to_yaml", "validate_config"]
+__all__ = ["GROUPS", "MAX_HORIZON", "CheckConfig", "ExecuteConfig", "PerceptionConfig", "RunConfig", "check_horizon",
+           "default_yaml", "load_config", "section", "to_yaml", "validate_config"]
 
 #: config key -> plugin registry kind whose names it accepts
 GROUPS: dict[str, str] = {"planner": "planner", "encoder": "encoder", "cost_model": "cost_model", "task": "task"}
 #: sections built from a dataclass of their own (checked by building them)
 SECTIONS = ("perception", "check", "execute", "sim")
-#: the deepest planning horizon a command accepts: the skeleton enumeration grows with K**H
+#: the deepest planning horizon a command accepts (``pasta plan``, ``pasta run``, ``pasta eval``): the skeleton
+#: enumeration grows with K**H
 MAX_HORIZON = 10
+
+
+def check_horizon(value: Any) -> int | None:
+    """``horizon=``: an integer in ``[1, MAX_HORIZON]``, or ``None`` (not given: the task's horizon, 3 for ``pasta
+    plan``). ``horizon=0`` and ``horizon=`` are refused: omitting the key is the one way to ask for the default."""
+    from pasta.config.validate import check_int
+
+    if value is None:
+        return None
+    try:
+        return check_int(value, "horizon", low=1, high=MAX_HORIZON)
+    except ConfigError as exc:
+        raise ConfigError(f"{exc} (omit horizon= for the task's horizon; pasta plan's is 3)") from None
 
 
 def default_yaml() -> dict[str, Any]:
@@ -65,7 +82,14 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
         key = key.strip()
         if not eq or not key:
             raise ConfigError(f"override {item!r} must look like key=value")
+        check_literal(key, value)
+        if key == "horizon":
+            check_horizon(value.strip())
         if key in GROUPS:
+            if not value.strip():
+                kind = GROUPS[key]
+                raise ConfigError(f"{key}=: names no {kind}; registered {kind}s: {', '.join(plugins[kind].names())} "
+                                  f"(omit {key}= for {'no task' if key == 'task' else 'the default'})")
             given[key] = value.strip()
         elif key.split(".")[0] in GROUPS and key.endswith(".name"):
             raise ConfigError(f"'{key}' is set by the group switch; write {key.split('.')[0]}=NAME instead")
@@ -94,8 +118,10 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
     cfg = OmegaConf.merge(cfg, {"skill": skills})
     OmegaConf.set_struct(cfg, True)  # unknown keys anywhere are errors, with a suggestion
     OmegaConf.set_struct(cfg.sim.tool_friction, False)  # a mapping: any tool name (checked below)
+    for item in dotlist:
+        _check_leaf(cfg, item.partition("=")[0])
     try:
-        cfg = OmegaConf.merge(cfg, defaults, OmegaConf.from_dotlist(task_defaults), OmegaConf.from_dotlist(dotlist))
+        cfg = OmegaConf.merge(cfg, defaults, from_items(task_defaults), from_items(dotlist))
     except (ConfigKeyError, ConfigAttributeError) as exc:
         raise _unknown_key(cfg, exc) from None
     except ValidationError as exc:
@@ -116,14 +142,17 @@ def validate_config(cfg: DictConfig, *, plugins: Any = None) -> None:
     ``skeleton``), builds every section's dataclass once, so its ``__post_init__`` checks run now, and
     checks that ``sim.tool_friction`` names registered tools.
     """
-    from pasta.config.validate import check_choice, check_device, check_int, check_seed, check_threads
+    from pasta.config.validate import check_choice, check_device, check_seed, check_threads
 
     check_seed(cfg.seed, "seed")
     check_device(cfg.device, "device")
     check_threads(cfg.threads, "threads")
     check_choice(cfg.method, "method", METHODS)
-    if cfg.horizon is not None:
-        check_int(cfg.horizon, "horizon", low=1, high=MAX_HORIZON)
+    check_horizon(cfg.horizon)
+    steps = split_names(cfg.skeleton, "skeleton")
+    if steps and steps != ["task"] and cfg.horizon is not None and len(steps) != int(cfg.horizon):
+        raise ConfigError(f"skeleton={cfg.skeleton} has {len(steps)} steps but horizon={cfg.horizon}: a given skeleton "
+                          "sets the horizon (omit horizon=)")
     if plugins is not None:
         for key in ("skills", "skeleton"):
             for name in split_names(cfg[key], key):
@@ -149,27 +178,33 @@ def validate_config(cfg: DictConfig, *, plugins: Any = None) -> None:
         _build(node, f"skill.{name}")
 
 
-def _build(node: DictConfig, key: str) -> Any:
+def _check_leaf(cfg: DictConfig, key: str) -> None:
+    """A ``key=value`` item sets one setting: a key that names a whole section (``execute=``, ``skill=x``,
+    ``sim.tool_friction=``) is refused, naming the section's keys."""
+    group = key.split(".")[0]
+    if group in GROUPS and cfg.get(group) is None:
+        kind = GROUPS[group]
+        raise ConfigError(f"'{key}' is a setting of the chosen {kind}, and none is chosen; give {group}=NAME first")
     try:
-        return OmegaConf.to_object(node)
+        node = OmegaConf.select(cfg, key)
+    except OmegaConfBaseException:
+        return  # an unknown key: the merge names it, with the closest valid key
+    if isinstance(node, DictConfig):
+        inner = ", ".join(f"{key}.{k}" for k in node.keys()) or f"{key}.<name>"
+        raise ConfigError(f"'{key}' is a section, not a setting; set its keys: {inner}")
+
+
+def _build(node: DictConfig, key: str) -> Any:
+    from pasta.config.validate import check_field_values
+
+    try:
+        return check_field_values(OmegaConf.to_object(node), f"{key}.")
     except ConfigError as exc:
         raise ConfigError(_prefixed(str(exc), key)) from None
     except OmegaConfBaseException as exc:
         raise ConfigError(f"config section '{key}': {str(exc.msg).splitlines()[0]}") from None
     except (TypeError, ValueError) as exc:  # a plugin dataclass whose own checks raise plain errors
         raise ConfigError(f"config section '{key}': {exc}") from None
-
-
-#: omegaconf's type messages in the words of pasta's own checks
-_TYPE_WORDS = {"Integer": "must be an integer", "Float": "must be a number", "Boolean": "must be true or false"}
-
-
-def _plain(message: str) -> str:
-    """``Value 'x' of type 'str' could not be converted to Integer`` -> ``must be an integer``."""
-    for word, plain in _TYPE_WORDS.items():
-        if message.endswith(f"could not be converted to {word}"):
-            return plain
-    return message
 
 
 def split_names(value: Any, key: str) -> list[str]:

@@ -17,6 +17,24 @@ from omegaconf.errors import OmegaConfBaseException
 from pasta.core.errors import ConfigError, did_you_mean
 
 
+def from_items(items: Sequence[str]) -> Any:
+    """``["a.b=1", "c=x"]`` as an omegaconf config (values read as YAML scalars, as omegaconf reads them; a later
+    item of the same key wins). A value that YAML cannot read (``"``, ``{``, control characters) raises a
+    one-line :class:`ConfigError` naming its item."""
+    import yaml
+
+    parts = []
+    for item in items:
+        try:
+            parts.append(OmegaConf.from_dotlist([item]))
+        except (yaml.YAMLError, ValueError) as exc:
+            key, _, value = item.partition("=")
+            why = str(getattr(exc, "problem", "") or exc).splitlines()[0]
+            raise ConfigError(f"{key}={value}: cannot be read as a value ({why}); quote it for YAML, "
+                              f"e.g. {key}='text'") from None
+    return OmegaConf.merge(*parts) if parts else OmegaConf.create()
+
+
 def split_overrides(items: Sequence[str]) -> dict[str, str]:
     """``["a=1", "b=x"]`` -> ``{"a": "1", "b": "x"}``; a malformed item raises :class:`ConfigError`."""
     out: dict[str, str] = {}
@@ -29,16 +47,31 @@ def split_overrides(items: Sequence[str]) -> dict[str, str]:
 
 
 def build(cls: type, values: Mapping[str, Any], *, command: str = "") -> Any:
-    """An instance of dataclass ``cls`` with ``values`` (strings or typed) applied over its defaults."""
+    """An instance of dataclass ``cls`` with ``values`` (strings or typed) applied over its defaults.
+
+    Every value is checked here, before the command does any work: its type (omegaconf, from the field's
+    annotation), no ``${...}`` interpolation, finite floats and 64-bit integers in every field
+    (:func:`~pasta.config.validate.check_field_values`), and the dataclass's own ``__post_init__`` checks.
+    """
+    from pasta.config.validate import check_field_values, check_literal, plain_type_message
+
     known = [f.name for f in fields(cls)]
-    for key in values:
+    for key, value in values.items():
         if key not in known:
             raise ConfigError(f"unknown key '{key}'{_for(command)}{did_you_mean(key, known)}; valid keys: {', '.join(known)}")
+        check_literal(key, _text(value))
+    dotlist = [f"{k}={_text(v)}" if _text(v).strip() else f"{k}=''" for k, v in values.items()]
     try:
-        node = OmegaConf.merge(OmegaConf.structured(cls), OmegaConf.from_dotlist([f"{k}={_text(v)}" for k, v in values.items()]))
-        return OmegaConf.to_object(node)
+        node = OmegaConf.merge(OmegaConf.structured(cls), from_items(dotlist))
+        return check_field_values(OmegaConf.to_object(node))
+    except ConfigError:
+        raise
     except OmegaConfBaseException as exc:
-        raise ConfigError(f"{exc.full_key or 'argument'}{_for(command)}: {str(exc.msg).splitlines()[0]}") from None
+        key = str(exc.full_key or "")
+        shown = f"{key}={_text(values[key])}" if key in values else (key or "argument")
+        raise ConfigError(f"{shown}{_for(command)}: {plain_type_message(str(exc.msg).splitlines()[0])}") from None
+    except (TypeError, ValueError) as exc:  # a dataclass whose own checks raise plain errors
+        raise ConfigError(f"{cls.__name__}{_for(command)}: {exc}") from None
 
 
 def build_many(items: Sequence[str] | Mapping[str, Any], classes: Sequence[type], *, command: str = "") -> list[Any]:
@@ -64,4 +97,4 @@ def _text(value: Any) -> str:
     return "null" if value is None else str(value)
 
 
-__all__ = ["build", "build_many", "split_overrides"]
+__all__ = ["build", "build_many", "from_items", "split_overrides"]

@@ -171,7 +171,9 @@ class RunConfig:
             with 2 on a 2-core machine that also ran a training job.
         models: root of trained weights (``pasta train ... out=DIR``); empty: the shipped ones.
         method: see :data:`METHODS`.
-        horizon: planning horizon; empty: the task's (3 for ``pasta plan``).
+        horizon: planning horizon, 1 to :data:`pasta.config.MAX_HORIZON` (10; the skeleton enumeration grows
+            with K**H); not given (``null``): the task's (3 for ``pasta plan``), or the length of a given
+            ``skeleton``. ``horizon=0`` and ``horizon=`` are refused: omit the key for the task's horizon.
         skills: comma-separated skills to plan with; empty: every registered skill with trained weights.
         skeleton: a fixed skill sequence (``cut,push,roll``), ``task`` (the task's ground-truth chain), or
             empty (the planner searches).

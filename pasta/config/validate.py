@@ -72,6 +72,20 @@ def check_number(value: Any, key: str, *, low: float | None = None, high: float 
     return x
 
 
+def check_ranges(obj: Any, ranges: dict[str, tuple], prefix: str = "") -> None:
+    """Range-check fields of dataclass ``obj``: ``{field: (low, high)}`` or ``(low, high, "(]")`` (the
+    brackets say which ends are open; either bound ``None``). Integer fields go through :func:`check_int`,
+    the others through :func:`check_number` (finite)."""
+    for name, bounds in ranges.items():
+        low, high = bounds[0], bounds[1]
+        ends = bounds[2] if len(bounds) > 2 else "[]"
+        value = getattr(obj, name)
+        if isinstance(value, int) and not isinstance(value, bool) and ends == "[]":
+            check_int(value, prefix + name, low=low, high=high)
+        else:
+            check_number(value, prefix + name, low=low, high=high, low_open=ends[0] == "(", high_open=ends[1] == ")")
+
+
 def check_choice(value: Any, key: str, choices: Iterable[str]) -> str:
     """``value`` if it is one of ``choices``."""
     options = list(choices)
@@ -103,6 +117,59 @@ def check_device(value: Any, key: str = "device") -> str:
         raise ConfigError(f"{key}={_show(value)}: this machine has {count} CUDA device(s); allowed: cpu, cuda, "
                           f"cuda:0..cuda:{count - 1}")
     return text
+
+
+def check_literal(key: str, value: Any) -> str:
+    """A ``key=value`` value as given: omegaconf's ``${...}`` interpolations are refused (one line naming the
+    key), so a value never silently becomes another key's value or an environment variable."""
+    text = str(value)
+    if "${" in text:
+        raise ConfigError(f"{key}={_show(value)}: ${{...}} interpolations are not supported in key=value "
+                          "arguments; write the value itself")
+    return text
+
+
+def check_input_file(path: Any, key: str) -> Path:
+    """A file that exists and can be read (an input of a command, checked before any work)."""
+    p = _as_path(path, key)
+    if not p.exists():
+        raise ConfigError(f"{key}={_show(path)}: the file does not exist")
+    if p.is_dir():
+        raise ConfigError(f"{key}={_show(path)}: is a directory; give a file")
+    if not os.access(p, os.R_OK):
+        raise ConfigError(f"{key}={_show(path)}: the file is not readable")
+    return p
+
+
+def check_input_dir(path: Any, key: str) -> Path:
+    """A directory that exists and can be read (an input of a command, checked before any work)."""
+    p = _as_path(path, key)
+    if not p.is_dir():
+        why = "is not a directory" if p.exists() else "the directory does not exist"
+        raise ConfigError(f"{key}={_show(path)}: {why}")
+    if not os.access(p, os.R_OK | os.X_OK):
+        raise ConfigError(f"{key}={_show(path)}: the directory is not readable")
+    return p
+
+
+def check_field_values(obj: Any, prefix: str = "") -> Any:
+    """What holds for every pasta setting, checked on every field of dataclass ``obj`` (and every item of a
+    list field): a float is finite (NaN and infinity are no setting of any key) and an integer fits 64 bits
+    (torch and numpy take nothing larger). A new key is covered without code of its own. Returns ``obj``."""
+    from dataclasses import fields, is_dataclass
+
+    if not is_dataclass(obj):
+        return obj
+    for f in fields(obj):
+        value = getattr(obj, f.name)
+        items = value if isinstance(value, (list, tuple)) else [value]
+        for i, item in enumerate(items):
+            where = f"{prefix}{f.name}" + (f"[{i}]" if items is value else "")
+            if isinstance(item, float) and not math.isfinite(item):
+                raise ConfigError(f"{where}={_show(item)}: must be a finite number")
+            if isinstance(item, int) and not isinstance(item, bool) and not -(2**63) <= item < 2**63:
+                raise ConfigError(f"{where}={_show(item)}: must be an integer that fits 64 bits")
+    return obj
 
 
 def check_output_file(path: Any, key: str, *, suffixes: Iterable[str] | None = None) -> Path:
@@ -147,6 +214,22 @@ def _check_writable_parent(parent: Path, key: str, given: Any) -> None:
         raise ConfigError(f"{key}={_show(given)}: directory {str(probe)!r} is not writable")
 
 
+#: omegaconf's type messages in the words of pasta's own checks
+_TYPE_WORDS = {"Integer": "must be an integer", "Float": "must be a number", "Boolean": "must be true or false"}
+
+
+def plain_type_message(message: str) -> str:
+    """``Value 'x' of type 'str' could not be converted to Integer`` -> ``must be an integer``."""
+    for word, plain in _TYPE_WORDS.items():
+        if message.endswith(f"could not be converted to {word}"):
+            return plain
+    if "is not a valid bool" in message:
+        return "must be true or false"
+    if message.startswith("Cannot convert '") and ("'DictConfig'" in message or "'ListConfig'" in message):
+        return "must be a single value, not a list or a mapping"
+    return message
+
+
 def _as_path(path: Any, key: str) -> Path:
     text = str(path) if path is not None else ""
     if not text.strip():
@@ -172,12 +255,16 @@ def _as_int(value: Any, key: str, allowed: str) -> int:
 def _range_text(low: float | None, high: float | None, *, integer: bool = False, low_open: bool = False,
                 high_open: bool = False) -> str:
     kind = "an integer" if integer else "a finite number"
+
+    def text(bound: float) -> str:  # integers in full (1000000, not 1e+06)
+        return str(bound) if isinstance(bound, int) else f"{bound:g}"
+
     if low is not None and high is not None:
-        return f"{kind} in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+        return f"{kind} in {'(' if low_open else '['}{text(low)}, {text(high)}{')' if high_open else ']'}"
     if low is not None:
-        return f"{kind} {'>' if low_open else '>='} {low:g}"
+        return f"{kind} {'>' if low_open else '>='} {text(low)}"
     if high is not None:
-        return f"{kind} {'<' if high_open else '<='} {high:g}"
+        return f"{kind} {'<' if high_open else '<='} {text(high)}"
     return kind
 
 
@@ -186,5 +273,6 @@ def _show(value: Any) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-__all__ = ["MAX_THREADS", "SEED_MAX", "check_choice", "check_device", "check_int", "check_number", "check_output_dir",
-           "check_output_file", "check_seed", "check_threads"]
+__all__ = ["MAX_THREADS", "SEED_MAX", "check_choice", "check_device", "check_field_values", "check_input_dir",
+           "check_input_file", "check_int", "check_literal", "check_number", "check_output_dir", "check_output_file",
+           "check_ranges", "check_seed", "check_threads", "plain_type_message"]

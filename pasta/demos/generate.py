@@ -31,8 +31,8 @@ step limit) is given up and the demo retried, as after a death.
 from __future__ import annotations
 
 import json
+import os
 import platform
-import tempfile
 import time
 import zlib
 from dataclasses import asdict, dataclass
@@ -45,7 +45,7 @@ import numpy as np
 from pasta.core.errors import ConfigError
 from pasta.core.files import OutputLock, write_json
 from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
-from pasta.distributed import BackendConfig, BackendError
+from pasta.distributed import MAX_WORKERS, BackendConfig, BackendError
 from pasta.demos.scene import (DEFAULT, check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles,
                                variant_config)
 
@@ -53,6 +53,9 @@ if TYPE_CHECKING:
     from pasta.core import Skill
 
 FORMAT = "pasta-demos/1"
+#: bounds of the counts of ``pasta demos`` (more is a typo, not a dataset)
+MAX_DEMOS = 1_000_000
+MAX_IDLE = 100_000
 #: the training stages that read demonstrations (:attr:`pasta.core.DemoVariant.stages` names some of them)
 TRAINING_STAGES = ("vae", "feasibility", "cost", "policy", "reset")
 
@@ -93,28 +96,38 @@ def demo_path(out: str | Path, skill: str, index: int) -> Path:
 
 
 def validate(cfg: DemoConfig) -> Path:
-    """Check every argument before any work starts; returns the (created, writable) skill folder."""
+    """Check every argument before any work starts (nothing is created or written); returns the skill folder
+    ``out/<skill>`` (created by :func:`generate_demos`)."""
+    from pasta.config.validate import check_int, check_output_dir, check_seed
+
     if not cfg.skill:
         raise ConfigError(f"`pasta demos` needs skill=NAME; skills with demonstrations: {', '.join(demo_skills()) or 'none'}")
     cls = check_demo_skill(cfg.skill)
-    if cfg.num <= 0:
-        raise ConfigError(f"num must be >= 1, got {cfg.num}")
-    if cfg.workers < 0:
-        raise ConfigError(f"workers must be >= 0, got {cfg.workers}")
+    check_int(cfg.num, "num", low=1, high=MAX_DEMOS)
+    check_int(cfg.workers, "workers", low=0, high=MAX_WORKERS)
+    check_seed(cfg.seed, "seed")
     for name in ("settle_steps", "idle_steps"):
-        if getattr(cfg, name) < 0:
-            raise ConfigError(f"{name} must be >= 0, got {getattr(cfg, name)}")
+        check_int(getattr(cfg, name), name, low=0, high=MAX_IDLE)
     check_variant(cls, cfg.scene)
-    if cfg.n_particles < 1 or cfg.obs_points < 1:
-        raise ConfigError("n_particles and obs_points must be >= 1")
-    folder = Path(cfg.out) / cfg.skill
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryFile(dir=folder):  # a fresh file of a random name: can we write there?
-            pass
-    except OSError as exc:
-        raise ConfigError(f"out={cfg.out}: cannot write demonstrations there ({exc.strerror or exc})") from None
+    sim_config(cfg)  # the simulator's own checks (n_particles, obs_points), before any simulator starts
+    check_output_dir(cfg.out, "out")
+    folder = Path(cfg.out).expanduser() / cfg.skill
+    if folder.exists() and not folder.is_dir():
+        raise ConfigError(f"out={cfg.out}: {folder} exists and is not a directory; give another out=")
+    if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
+        raise ConfigError(f"out={cfg.out}: cannot write demonstrations to {folder} (not writable)")
     return folder
+
+
+def sim_config(cfg: DemoConfig) -> Any:
+    """The simulator settings demonstrations are made with (:class:`pasta.sim.SimConfig`)."""
+    from pasta.sim import SimConfig
+
+    try:
+        return SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
+                         max_particles=max(10000, cfg.n_particles))
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(str(exc).removeprefix("sim.")) from None
 
 
 def versions() -> dict[str, str]:
@@ -175,14 +188,12 @@ class DemoWriter:
 
     def __init__(self, cfg: DemoConfig) -> None:
         from pasta.plugins import get_plugins
-        from pasta.sim import SimConfig, Simulator
+        from pasta.sim import Simulator
 
         self.cfg = cfg
         self.skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
         self.variant_record = variant_record(type(self.skill), cfg.scene)
-        self.sim = Simulator(SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
-                                       max_particles=max(10000, cfg.n_particles)),
-                             tools=get_plugins().simulated_tools())
+        self.sim = Simulator(sim_config(cfg), tools=get_plugins().simulated_tools())
 
     def generate(self, index: int) -> dict[str, np.ndarray]:
         """The arrays of demonstration ``index`` (see the module docstring)."""
@@ -331,6 +342,7 @@ def _generate(cfg: DemoConfig, backend: BackendConfig, *, progress: bool, max_at
     from pasta.distributed import map_jobs
     from pasta.tasks.npz import write_npz
 
+    (Path(cfg.out).expanduser() / cfg.skill).mkdir(parents=True, exist_ok=True)  # checked by validate()
     todo = pending(cfg)
     skipped = cfg.num - len(todo)
     write_manifest(cfg)

@@ -50,7 +50,8 @@ from typing import Any
 from pasta.core.errors import ConfigError, PastaError, did_you_mean
 
 __all__ = ["BACKENDS", "BACKEND_KEYS", "BackendConfig", "BackendError", "Outcome", "map_jobs", "sized_deadline",
-           "split_backend_args", "worker_state", "TEST_KILL_ENV", "TEST_STOP_ENV", "MAX_ATTEMPTS", "STARTUP_S"]
+           "split_backend_args", "worker_state", "TEST_KILL_ENV", "TEST_STOP_ENV", "MAX_ATTEMPTS", "MAX_WORKERS",
+           "STARTUP_S"]
 
 BACKENDS = ("local", "ray")
 #: the keys :func:`split_backend_args` takes out of a command line (the same on every command that has them)
@@ -64,6 +65,8 @@ STARTUP_S = 600.0
 #: ~45 ms on an idle 2-core machine and ~0.1-0.3 s on a loaded one, so this is 3-20 times that
 STEP_S = 1.0
 STEP_PARTICLES = 5000
+#: the most workers a command's ``workers=`` asks for (more is a typo, not a machine)
+MAX_WORKERS = 1024
 TEST_KILL_ENV = "PASTA_TEST_KILL"
 TEST_STOP_ENV = "PASTA_TEST_STOP"
 #: the signal each test hook sends
@@ -148,7 +151,8 @@ def split_backend_args(items: Sequence[str] | Mapping[str, Any]) -> tuple[Backen
             else:
                 from pasta.config.validate import check_int
 
-                setattr(cfg, attr, check_int(value, key, low=0 if attr == "num_cpus" else 80))
+                setattr(cfg, attr, check_int(value, key, low=0 if attr == "num_cpus" else 80,
+                                             high=MAX_WORKERS if attr == "num_cpus" else 1 << 30))
             ray_given.append(key)
         else:
             rest[key] = value

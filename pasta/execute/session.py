@@ -224,7 +224,12 @@ def build_session(task: str | None = None, overrides: Sequence[str] = (), *, plu
     name = str(cfg.task.name)
     skill_configs = {n: section(cfg, f"skill.{n}") for n in (cfg.get("skill") or {})}
     task_obj = plugins.tasks.load(name)(section(cfg, "task"), section(cfg, "sim"), skill_configs=skill_configs)
-    horizon = int(cfg.horizon or task_obj.horizon)
+    steps = split_names(cfg.skeleton, "skeleton")
+    given = steps if steps != ["task"] else []  # a given skeleton sets the horizon (as in `pasta plan`)
+    horizon = int(cfg.horizon or len(given) or task_obj.horizon)
+    if steps == ["task"] and horizon > task_obj.horizon:
+        raise ConfigError(f"horizon={horizon}: skeleton=task plans the task's {task_obj.horizon}-step chain "
+                          f"({','.join(task_obj.skeleton)}); omit horizon= or give horizon<={task_obj.horizon}")
     session = Session(task_obj, cfg, root, horizon)
     if cfg.method == "oracle":
         return session

@@ -29,6 +29,8 @@ from pasta.io.run_reader import RunReader
 from pasta.io.schemas import LOG_SCHEMA, POINT_CLOUD_SCHEMA
 
 EXIT_OK, EXIT_VERIFY_FAILED, EXIT_BAD_FILE = 0, 1, 2
+#: the prefix of its error lines, as every ``pasta`` command's
+PROG = "pasta replay"
 
 HELP = "print a run file's timeline, export PNG/GIF frames, recover a truncated file, or re-simulate and --verify it"
 
@@ -61,14 +63,15 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     """Execute ``pasta replay`` with parsed ``args``; returns the exit code."""
     out = out or sys.stdout
     err = sys.stderr
+    check_options(args)  # every option, before the run file is opened
     topics = _split_topics(args.topics)
     try:
         reader = RunReader(args.run_file, recover=args.recover)
     except McapTruncatedError as e:
-        print(f"error: {e}", file=err)
+        print(f"{PROG}: error: {e}", file=err)
         return EXIT_BAD_FILE
     except McapFormatError as e:
-        print(f"error: {e}", file=err)
+        print(f"{PROG}: error: {e}", file=err)
         return EXIT_BAD_FILE
     with reader:
         try:
@@ -91,16 +94,30 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
                 except McapFormatError:
                     raise
                 except ConfigError as e:  # the file's own sim_config.json is bad: a bad-file error, exit 2
-                    print(f"error: {e}", file=err)
+                    print(f"{PROG}: error: {e}", file=err)
                     return EXIT_BAD_FILE
                 except PastaError as e:  # the simulator refused the logged state / config / action
-                    print(f"error: verify: {e}", file=err)
+                    print(f"{PROG}: error: verify: {e}", file=err)
                     return EXIT_VERIFY_FAILED
                 return EXIT_OK if ok else EXIT_VERIFY_FAILED
         except McapFormatError as e:
-            print(f"error: {e}", file=err)
+            print(f"{PROG}: error: {e}", file=err)
             return EXIT_BAD_FILE
     return EXIT_OK
+
+
+def check_options(args: argparse.Namespace) -> None:
+    """Raise a one-line :class:`ConfigError` for an option value that cannot work (before any file is read)."""
+    from pasta.config.validate import check_int, check_number, check_output_dir
+
+    check_int(args.every, "--every", low=1)
+    check_int(args.max_frames, "--max-frames", low=1)
+    check_number(args.fps, "--fps", low=0.0, low_open=True, high=1000.0)
+    check_number(args.tolerance, "--tolerance", low=0.0)
+    if args.export is not None:
+        check_output_dir(args.export, "--export")
+    if args.topics is not None and not _split_topics(args.topics):
+        raise ConfigError("--topics names no topic")
 
 
 def _split_topics(values: list[str] | None) -> list[str] | None:

@@ -61,7 +61,7 @@ from pasta.core.errors import ConfigError, did_you_mean
 from pasta.core.files import OutputLock, write_json
 from pasta.pipeline.stages import STAGES, Stage, skill_class, stage
 
-__all__ = ["PipelineConfig", "Unit", "UnitResult", "parse_arguments", "plan", "run_pipeline", "settings",
+__all__ = ["PipelineConfig", "Unit", "UnitResult", "parse_arguments", "plan", "run_pipeline", "run_units", "settings",
            "skill_defaults", "summary_table"]
 
 FORMAT = "pasta-pipeline/1"
@@ -111,6 +111,18 @@ class PipelineConfig:
     force: bool = False
     only: str = ""
     progress: bool = True
+
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_int
+        from pasta.demos.generate import MAX_DEMOS
+        from pasta.distributed import MAX_WORKERS
+
+        check_int(self.num_demos, "num_demos", low=1, high=MAX_DEMOS)
+        try:
+            check_int(self.variant_demos, "variant_demos", low=-1, high=MAX_DEMOS)
+        except ConfigError as exc:
+            raise ConfigError(f"{exc} (-1: each variant's own number, 0: none)") from None
+        check_int(self.workers, "workers", low=0, high=MAX_WORKERS)
 
 
 @dataclass
@@ -231,10 +243,6 @@ def parse_arguments(items: Sequence[str] | Mapping[str, Any]) -> tuple[PipelineC
             raise
         raise ConfigError(f"{exc}; a stage's settings take its name as a prefix, e.g. vae.epochs=5 "
                           f"(stages: {', '.join(NAMES)})") from None
-    if cfg.num_demos < 1 or cfg.workers < 0:
-        raise ConfigError(f"num_demos must be >= 1 and workers >= 0, got {cfg.num_demos} and {cfg.workers}")
-    if cfg.variant_demos < -1:
-        raise ConfigError(f"variant_demos must be >= 0, or -1 for each variant's own number, got {cfg.variant_demos}")
     return cfg, overrides
 
 
@@ -375,7 +383,12 @@ def run_pipeline(items: Sequence[str] | Mapping[str, Any], *,
     backend.check()
     cfg, overrides = parse_arguments(items)
     units = plan(cfg, overrides)
-    _check_inputs(cfg, units)
+    _check_inputs(cfg, units)  # every argument is checked before the first unit runs
+    return run_units(cfg, units, backend, say)
+
+
+def run_units(cfg: PipelineConfig, units: Sequence[Unit], backend: Any, say: Callable[[str], None]) -> list[UnitResult]:
+    """Run the checked, planned ``units`` in order (done ones are skipped); return one result per unit."""
     out = Path(cfg.out)
     lock = OutputLock(out, "out").acquire()  # one pipeline per models root
     results: list[UnitResult] = []

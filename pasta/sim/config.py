@@ -95,8 +95,8 @@ class SimConfig:
             raise bad("max_particles", "must be in [1, 1e7]")
         if not 1 <= self.n_particles <= self.max_particles:
             raise bad("n_particles", f"must be in [1, max_particles={self.max_particles}]")
-        if self.obs_points < 1:
-            raise bad("obs_points", "must be >= 1")
+        if not 1 <= self.obs_points <= 10_000_000:
+            raise bad("obs_points", "must be in [1, 1e7]")
         if not isinstance(self.fast_math, bool):
             raise bad("fast_math", "must be true or false")
         if self.arch not in ("cpu", "cuda", "gpu", "vulkan", "metal"):

@@ -57,10 +57,13 @@ class CostTrainConfig:
     translate_max: float = 0.1
 
     def __post_init__(self) -> None:
-        from pasta.config.validate import check_number
+        from pasta.config.validate import check_ranges
+        from pasta.train.vae import MAX_POINTS
 
-        check_number(self.translated_fraction, "translated_fraction", low=0.0, high=1.0)
-        check_number(self.translate_max, "translate_max", low=0.0)
+        check_ranges(self, {"hidden": (1, 1 << 16), "pairs_per_entity": (1, 10_000), "same_demo_fraction": (0.0, 1.0),
+                            "label_points": (1, MAX_POINTS), "num_points": (1, MAX_POINTS), "stride": (1, None),
+                            "val_fraction": (0.0, 1.0, "[)"), "translated_fraction": (0.0, 1.0),
+                            "translate_max": (0.0, None)})
 
 
 def entity_pairs(demos: list[EncodedDemo], cfg: CostTrainConfig, *, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:

@@ -27,12 +27,16 @@ from typing import Any
 
 import numpy as np
 
+from pasta.core.errors import ConfigError
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.core.files import write_json
 
-__all__ = ["EvaluateConfig", "SkillConfig", "evaluate_command", "evaluate_skill", "make_configs", "table"]
+__all__ = ["EvaluateConfig", "SkillConfig", "evaluate_command", "evaluate_config", "evaluate_skill", "make_configs",
+           "table"]
 
 CONTROLLERS = ("learned", "heuristic", "expert")
+#: the most configs per skill ``n=`` asks for (each is a simulated episode per controller)
+MAX_CONFIGS = 10_000
 
 
 @dataclass
@@ -163,6 +167,23 @@ class SkillRunSettings:
     n_grid: int = 64
     max_particles: int = 10000
 
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_int
+
+        check_int(self.start_step, "start_step", low=-1)
+        check_int(self.learned_max_steps, "learned_max_steps", low=0)
+        self.sim_config()  # the simulator's own checks (particles, grid), before any simulator starts
+
+    def sim_config(self) -> Any:
+        """The single-skill simulator's :class:`pasta.sim.SimConfig` (the one ``pasta demos`` makes)."""
+        from pasta.sim import SimConfig
+
+        try:
+            return SimConfig(n_particles=self.n_particles, obs_points=self.obs_points, n_grid=self.n_grid,
+                             max_particles=max(self.max_particles, self.n_particles))
+        except (TypeError, ValueError) as exc:
+            raise ConfigError(str(exc).removeprefix("sim.")) from None
+
     def policy_options(self) -> dict[str, Any]:
         """``load_policy`` keywords for ``start_step`` and ``reset`` (what is not the checkpoint's own)."""
         return {**({"start_step": self.start_step} if self.start_step >= 0 else {}),
@@ -171,11 +192,9 @@ class SkillRunSettings:
     def make_sim(self) -> Any:
         """The single-skill simulator, with every registered simulated tool."""
         from pasta.plugins import get_plugins
-        from pasta.sim import SimConfig, Simulator
+        from pasta.sim import Simulator
 
-        return Simulator(SimConfig(n_particles=self.n_particles, obs_points=self.obs_points, n_grid=self.n_grid,
-                                   max_particles=max(self.max_particles, self.n_particles)),
-                         tools=get_plugins().simulated_tools())
+        return Simulator(self.sim_config(), tools=get_plugins().simulated_tools())
 
 
 @dataclass
@@ -208,14 +227,63 @@ class EvaluateConfig(SkillRunSettings):
     threads: int = 1
     json: str = ""
 
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_int, check_number, check_seed, check_threads
+
+        super().__post_init__()
+        check_int(self.n, "n", low=1, high=MAX_CONFIGS)
+        check_seed(self.seed, "seed")
+        if not self.done_threshold < 0:  # negative: the checkpoint's own rule
+            check_number(self.done_threshold, "done_threshold", high=1.0)
+        check_int(self.min_steps, "min_steps", low=-1)
+        check_int(self.max_steps, "max_steps", low=-1)
+        check_threads(self.threads, "threads")
+
+    def skill_names(self) -> list[str]:
+        """``skills=`` as names (empty: every registered skill that can make demonstrations)."""
+        from pasta.demos import demo_skills
+
+        return [s.strip() for s in str(self.skills).split(",") if s.strip()] or demo_skills()
+
+    def controller_names(self) -> list[str]:
+        return [c.strip() for c in str(self.controllers).split(",") if c.strip()]
+
+
+def evaluate_config(overrides: dict[str, Any] | None = None) -> EvaluateConfig:
+    """:class:`EvaluateConfig` from ``key=value`` overrides, every value checked before any simulator starts:
+    the skills (registered, able to make demonstrations, with scene ``scene``), the controllers, the learned
+    policies under ``models`` when ``learned`` is one of them, and the ``json`` file."""
+    from pasta.config.overrides import build
+    from pasta.config.validate import check_output_file
+    from pasta.core.errors import did_you_mean
+    from pasta.demos.scene import check_demo_skill, check_variant
+    from pasta.io.checkpoint import checkpoint_exists
+    from pasta.policy import POLICY_DIR
+    from pasta.weights import models_root
+
+    cfg = build(EvaluateConfig, dict(overrides or {}), command="pasta train evaluate")
+    controllers = cfg.controller_names()
+    if not controllers:
+        raise ConfigError(f"controllers={cfg.controllers}: names no controller; choose of {', '.join(CONTROLLERS)}")
+    for c in controllers:
+        if c not in CONTROLLERS:
+            raise ConfigError(f"unknown controller '{c}'{did_you_mean(c, CONTROLLERS)}; "
+                              f"choose of {', '.join(CONTROLLERS)}")
+    for name in cfg.skill_names():
+        check_variant(check_demo_skill(name), cfg.scene)
+        policy = models_root(cfg.models) / POLICY_DIR / name
+        if "learned" in controllers and not checkpoint_exists(policy):
+            raise ConfigError(f"controllers=learned: no trained policy of {name} in {policy}; train it with "
+                              f"`pasta train policy skill={name} data=DIR out=MODELS` and give models=MODELS")
+    if cfg.json:
+        check_output_file(cfg.json, "json")
+    return cfg
+
 
 def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """``pasta train evaluate [key=value ...]`` as a function (:class:`EvaluateConfig` keys): score the
     controllers on held-out single-skill configs; returns ``{skill: {controller: [per-config records]}}``
     (:func:`table` prints them as docs/policies.md does)."""
-    from pasta.config.overrides import build
-    from pasta.core.errors import ConfigError, did_you_mean
-    from pasta.demos import demo_skills
     from pasta.demos.generate import skill_config
     from pasta.plugins import get_plugins
     from pasta.policy import POLICY_DIR
@@ -223,12 +291,8 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
     from pasta.train.loop import torch_threads
     from pasta.weights import models_root
 
-    cfg = build(EvaluateConfig, dict(overrides or {}), command="pasta train evaluate")
-    names = [s for s in cfg.skills.split(",") if s] or demo_skills()
-    controllers = [c for c in cfg.controllers.split(",") if c]
-    for c in controllers:
-        if c not in CONTROLLERS:
-            raise ConfigError(f"unknown controller '{c}'{did_you_mean(c, CONTROLLERS)}; choose of {', '.join(CONTROLLERS)}")
+    cfg = evaluate_config(overrides)
+    names, controllers = cfg.skill_names(), cfg.controller_names()
     models = models_root(cfg.models)
     kw: dict[str, Any] = {k: getattr(cfg, k) for k in ("min_steps", "max_steps") if getattr(cfg, k) >= 0}
     if cfg.done_threshold >= 0:

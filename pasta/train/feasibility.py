@@ -79,6 +79,17 @@ class FeasibilityTrainConfig:
     vae: str = ""
     flat: bool = False
 
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_choice, check_ranges
+        from pasta.train.vae import MAX_POINTS
+
+        check_ranges(self, {"hidden": (1, 1 << 16), "hard_per_positive": (0, 10_000), "shift_per_positive": (0, 10_000),
+                            "shift_min": (0.0, None), "shift_max": (self.shift_min, None), "z_noise": (0.0, None),
+                            "t_noise": (0.0, None), "unchanged_threshold": (0.0, None), "match_points": (1, MAX_POINTS),
+                            "max_pairs_per_demo": (1, None), "num_points": (1, MAX_POINTS), "stride": (1, None),
+                            "val_fraction": (0.0, 1.0, "[)")})
+        check_choice(self.shift_entities, "shift_entities", ("all", "one"))
+
 
 def train_dict(cfg: Any) -> dict[str, Any]:
     """The settings saved with the weights (``model.json``'s ``train``)."""

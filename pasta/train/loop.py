@@ -23,9 +23,13 @@ from typing import Any, Protocol
 
 import torch
 
-from pasta.core.errors import ConfigError
 from pasta.core.files import OutputLock
 from pasta.io.checkpoint import IncompatibleCheckpointError, checkpoint_exists, load_checkpoint, save_checkpoint
+
+
+#: bounds of the loop's counts: more is a typo, not a training run
+MAX_EPOCHS = 100_000
+MAX_BATCH = 1_000_000
 
 
 @dataclass
@@ -54,8 +58,14 @@ class LoopConfig:
     threads: int = 0
 
     def __post_init__(self) -> None:
-        if self.epochs < 1 or self.batch_size < 1 or not self.lr > 0:
-            raise ConfigError(f"epochs and batch_size must be >= 1 and lr > 0, got {self.epochs}, {self.batch_size}, {self.lr}")
+        from pasta.config.validate import check_int, check_number, check_seed, check_threads
+
+        check_int(self.epochs, "epochs", low=1, high=MAX_EPOCHS)
+        check_int(self.batch_size, "batch_size", low=1, high=MAX_BATCH)
+        check_number(self.lr, "lr", low=0.0, low_open=True, high=1.0)
+        check_number(self.weight_decay, "weight_decay", low=0.0)
+        check_seed(self.seed, "seed")
+        check_threads(self.threads, "threads")
 
 
 class TrainTask(Protocol):

@@ -73,10 +73,13 @@ class PolicyTrainConfig:
     start_at_reset: bool = False
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.hindsight_ratio <= 1.0 or self.noise < 0 or not 0.0 <= self.val_fraction < 1.0:
-            raise ConfigError("hindsight_ratio and val_fraction must be in [0, 1], noise >= 0")
-        if self.steps_per_epoch < 1 or self.val_batches < 1:
-            raise ConfigError("steps_per_epoch and val_batches must be >= 1")
+        from pasta.config.validate import check_ranges
+        from pasta.train.vae import MAX_POINTS
+
+        check_ranges(self, {"hindsight_ratio": (0.0, 1.0), "noise": (0.0, None), "val_fraction": (0.0, 1.0, "[)"),
+                            "steps_per_epoch": (1, None), "val_batches": (1, None), "done_weight": (0.0, None),
+                            "done_pos_weight": (0.0, None), "dough_points": (1, MAX_POINTS),
+                            "tool_points": (1, MAX_POINTS), "goal_points": (1, MAX_POINTS), "max_demos": (0, None)})
 
 
 def _to_torch(b: Batch) -> dict[str, torch.Tensor]:

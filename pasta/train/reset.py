@@ -265,6 +265,16 @@ class ResetTrainConfig:
     x_share: bool = True
     encoder_weights: str = ""
 
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_ranges
+        from pasta.train.vae import MAX_POINTS
+
+        if self.target not in ("tool", "skill"):
+            raise ConfigError(f"target must be tool or skill, got {self.target!r}")
+        check_ranges(self, {"noise": (0.0, None), "val_fraction": (0.0, 1.0, "[)"), "start_step": (0, None),
+                            "points": (1, MAX_POINTS), "draws": (1, 10_000), "decoded_goals": (0.0, 1.0),
+                            "decoded_noise": (0.0, None)})
+
 
 #: the trainer's held-out figures, beside ``reset.*`` (the pipeline's done file of a ``reset`` unit)
 METRICS = "reset_metrics.json"
@@ -276,8 +286,12 @@ def reset_configs(overrides: Mapping[str, Any] | None = None, *, command: str = 
     from pasta.config.overrides import build_many
 
     loop, cfg = build_many({**LOOP_DEFAULTS, **dict(overrides or {})}, [LoopConfig, ResetTrainConfig], command=command)
-    if cfg.target not in ("tool", "skill"):
-        raise ConfigError(f"{command}: target must be tool or skill, got {cfg.target!r}")
+    if cfg.decoded_goals > 0 and cfg.encoder_weights:
+        from pasta.io.checkpoint import checkpoint_exists
+
+        if not checkpoint_exists(cfg.encoder_weights):
+            raise ConfigError(f"encoder_weights={cfg.encoder_weights}: no trained VAE there (model.safetensors and "
+                              "model.json); give a `pasta train vae` output, or leave it empty for the shipped one")
     return loop, cfg
 
 

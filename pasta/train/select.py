@@ -171,6 +171,22 @@ class SelectConfig(SkillRunSettings):
     threads: int = 1
     progress: bool = True
 
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_int, check_number, check_seed, check_threads
+        from pasta.train.evaluate import MAX_CONFIGS
+
+        super().__post_init__()
+        check_int(self.n, "n", low=1, high=MAX_CONFIGS)
+        check_seed(self.seed, "seed")
+        check_threads(self.threads, "threads")
+        thresholds, min_steps, caps = self.grid()
+        for t in thresholds:
+            check_number(t, "thresholds", low=0.0, high=1.0)
+        for m in min_steps:
+            check_int(m, "min_steps", low=0)
+        for c in caps:
+            check_int(c, "max_steps", low=0)
+
     def grid(self) -> tuple[list[float], list[int], list[int]]:
         """The thresholds, ``min_steps`` and caps as lists."""
         try:

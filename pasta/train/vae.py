@@ -20,6 +20,10 @@ from pasta.nn.vae import MODULE, PointVAE, cube_template
 from pasta.demos.data import Demo, demo_entities
 
 
+#: the most points per entity (or scene) a trainer samples
+MAX_POINTS = 100_000
+
+
 @dataclass
 class VAETrainConfig:
     """VAE settings (``key=value`` on ``pasta train vae``).
@@ -53,6 +57,15 @@ class VAETrainConfig:
     flat: bool = False
     val_fraction: float = 0.2
     max_val: int = 256
+
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_ranges
+
+        check_ranges(self, {"z_dim": (1, 1024), "width": (1, 1 << 16), "fold_hidden": (1, 1 << 16),
+                            "input_points": (1, MAX_POINTS), "target_points": (1, MAX_POINTS),
+                            "emd_points": (1, MAX_POINTS), "emd_weight": (0.0, None), "kl_weight": (0.0, None),
+                            "num_points": (1, MAX_POINTS), "stride": (1, None), "val_fraction": (0.0, 1.0, "[)"),
+                            "max_val": (1, None)})
 
 
 def collect_clouds(demos: list[Demo], cfg: VAETrainConfig, *, seed: int = 0) -> np.ndarray:

@@ -31,9 +31,14 @@ def test_unknown_key_names_command_and_closest_key():
 
 
 def test_bad_value_and_malformed_item():
-    with pytest.raises(ConfigError, match="epochs.*could not be converted to Integer"):
+    with pytest.raises(ConfigError, match="^epochs=three: must be an integer$"):
         build_many(["epochs=three"], [Loop])
-    with pytest.raises(ConfigError, match="not a valid bool"):
-        build_many(["flag=maybe"], [Module])
+    with pytest.raises(ConfigError, match="^flag=maybe for `pasta x`: must be true or false$"):
+        build_many(["flag=maybe"], [Module], command="pasta x")
+    for value in ("nan", "inf", "-1e400"):
+        with pytest.raises(ConfigError, match="^lr=.*: must be a finite number$"):
+            build_many([f"lr={value}"], [Loop])
+    with pytest.raises(ConfigError, match=r"^epochs=\$\{seed\}: \$\{...\} interpolations are not supported"):
+        build_many(["epochs=${seed}"], [Loop])
     with pytest.raises(ConfigError, match="must look like key=value"):
         build_many(["epochs"], [Loop])

@@ -20,12 +20,18 @@ def test_bad_arguments_fail_before_any_work(tmp_path, capsys):
         validate(DemoConfig(skill="knead", out=str(tmp_path)))
     with pytest.raises(ConfigError, match=f"needs skill=NAME; skills with demonstrations: {known}$"):
         validate(DemoConfig(out=str(tmp_path)))
-    with pytest.raises(ConfigError, match="num must be >= 1"):
+    with pytest.raises(ConfigError, match=r"num=0: must be an integer in \[1, "):
         validate(DemoConfig(skill="cut", num=0, out=str(tmp_path)))
+    with pytest.raises(ConfigError, match=r"seed=-1: must be an integer in \[0, "):
+        validate(DemoConfig(skill="cut", seed=-1, out=str(tmp_path)))
+    with pytest.raises(ConfigError, match=r"n_particles=0: must be in \[1, "):
+        validate(DemoConfig(skill="cut", n_particles=0, out=str(tmp_path)))
     blocker = tmp_path / "file"
     blocker.write_text("x")
-    with pytest.raises(ConfigError, match="cannot write"):
+    with pytest.raises(ConfigError, match="is a file, so the path cannot be created"):
         validate(DemoConfig(skill="cut", out=str(blocker / "sub")))
+    validate(DemoConfig(skill="cut", out=str(tmp_path / "new")))
+    assert not (tmp_path / "new").exists()  # checks create nothing
     assert main(["demos", "skill=knead", f"out={tmp_path}"]) == 2
     assert f"skills with demonstrations: {known}" in capsys.readouterr().err
     assert main(["demos", "skill=cut", "num=-3", f"out={tmp_path}"]) == 2

@@ -39,4 +39,5 @@ def test_bad_logged_sim_config_is_one_line_exit_2(tmp_path, capsys, config, mess
     path = _run_file(tmp_path / "r.mcap", config)
     assert _verify(path) == replay.EXIT_BAD_FILE
     err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
-    assert len(err) == 1 and err[0].startswith(f"error: {SIM_CONFIG} in {path}") and re.search(message, err[0]), err
+    assert len(err) == 1 and err[0].startswith(f"pasta replay: error: {SIM_CONFIG} in {path}"), err
+    assert re.search(message, err[0]), err

@@ -97,6 +97,7 @@ def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
     from synthetic_demos import synthetic_demo
 
     def fake_generate(cfg, *, progress=True, backend=None):
+        generate.validate(cfg).mkdir(parents=True, exist_ok=True)  # as generate_demos: the checks create nothing
         todo = generate.pending(cfg)
         for i in todo:
             arrays = synthetic_demo(cfg.skill, seed=i, steps=3, num_points=50)

@@ -35,13 +35,14 @@ class PrefixBeamConfig(HalvingConfig):
 
     def __post_init__(self) -> None:
         super().__post_init__()
+        from pasta.config import MAX_HORIZON
         from pasta.config.validate import check_int
 
         check_int(self.width, "planner.width", low=1)
         check_int(self.final, "planner.final", low=1)
-        check_int(self.window, "planner.window", low=1)
+        check_int(self.window, "planner.window", low=1, high=MAX_HORIZON)
         check_int(self.prefix_samples, "planner.prefix_samples", low=1)
         check_int(self.prefix_iterations, "planner.prefix_iterations", low=0)
-        check_int(self.max_horizon, "planner.max_horizon", low=0)
+        check_int(self.max_horizon, "planner.max_horizon", low=0, high=MAX_HORIZON)
         check_int(self.polish, "planner.polish", low=0)
         check_int(self.polish_top, "planner.polish_top", low=1)
