@@ -10,6 +10,7 @@ import pkgutil
 import sys
 import warnings
 from collections.abc import Sequence
+from typing import NoReturn
 
 import pasta.commands
 from pasta.core.errors import PastaError
@@ -20,7 +21,7 @@ class _Parser(argparse.ArgumentParser):
     """An argument parser whose usage errors are one line, ``pasta CMD: error: ...``, as every other error
     of the command line (exit code 2); ``pasta CMD --help`` shows the usage."""
 
-    def error(self, message: str):  # type: ignore[override]
+    def error(self, message: str) -> NoReturn:
         self.exit(2, f"{self.prog}: error: {one_line(message)} (`{self.prog} --help` shows the usage)\n")
 
 

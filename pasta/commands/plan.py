@@ -341,6 +341,7 @@ def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, i
     ``entities.json`` and, last, ``plan.json`` (via a temporary name, so a ``plan.json`` present is a
     complete one); every file is written whole, never through a link (:mod:`pasta.core.files`); return the
     workspace sub-goal file names."""
+    import functools
     import json
 
     import numpy as np
@@ -352,11 +353,11 @@ def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, i
     files, inputs = [], []
     for h, clouds in enumerate(subgoals):
         path = out / f"step_{h}_subgoal.npy"
-        save_with(path, lambda fh: np.save(fh, clouds))
+        save_with(path, functools.partial(np.save, arr=clouds))
         files.append(path.name)
         if frame is not None and not frame.identity:
             path = out / f"step_{h}_subgoal_input.npy"
-            save_with(path, lambda fh: np.save(fh, frame.from_workspace(clouds).astype(np.float32)))
+            save_with(path, functools.partial(np.save, arr=frame.from_workspace(clouds).astype(np.float32)))
             inputs.append(path.name)
         else:
             (out / f"step_{h}_subgoal_input.npy").unlink(missing_ok=True)
@@ -364,7 +365,7 @@ def write_outputs(out: Path, plan_json: str, subgoals: list, counts: dict[str, i
     if inputs:
         extra["subgoals_input_frame"] = inputs
     for name, lab in (labels or {}).items():
-        save_with(out / f"{name}_labels.npy", lambda fh: np.save(fh, lab))
+        save_with(out / f"{name}_labels.npy", functools.partial(np.save, arr=lab))
         extra[f"{name}_labels"] = f"{name}_labels.npy"
     write_text(out / "entities.json", json.dumps({**counts, **extra}, indent=2))
     write_text(out / "plan.json", plan_json)

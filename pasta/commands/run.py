@@ -60,7 +60,7 @@ def split_command_keys(items: list[str], cls: type) -> tuple[Any, list[str]]:
     from pasta.config.run import RunConfig
     from pasta.core.errors import did_you_mean
 
-    mine = list(cls.__dataclass_fields__)
+    mine = [f.name for f in fields(cls)]
     top = [f.name for f in fields(RunConfig)] + [g for g in GROUPS if g not in RunConfig.__dataclass_fields__]
     own: dict[str, str] = {}
     rest: list[str] = []

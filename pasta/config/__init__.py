@@ -19,7 +19,7 @@ from __future__ import annotations
 import re
 from collections.abc import Sequence
 from importlib import resources
-from typing import Any
+from typing import Any, cast
 
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import ConfigAttributeError, ConfigKeyError, OmegaConfBaseException, ValidationError
@@ -115,13 +115,13 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
         cfg = OmegaConf.merge(cfg, {group: OmegaConf.structured(chosen)})
     skills = {info.name: OmegaConf.structured(plugins.skills.default_config(info.name))
               for info in plugins.skills if info.config is not None}
-    cfg = OmegaConf.merge(cfg, {"skill": skills})
+    cfg = cast(DictConfig, OmegaConf.merge(cfg, {"skill": skills}))  # merging dict configs gives a dict config
     OmegaConf.set_struct(cfg, True)  # unknown keys anywhere are errors, with a suggestion
     OmegaConf.set_struct(cfg.sim.tool_friction, False)  # a mapping: any tool name (checked below)
     for item in dotlist:
         _check_leaf(cfg, item.partition("=")[0])
     try:
-        cfg = OmegaConf.merge(cfg, defaults, from_items(task_defaults), from_items(dotlist))
+        cfg = cast(DictConfig, OmegaConf.merge(cfg, defaults, from_items(task_defaults), from_items(dotlist)))
     except (ConfigKeyError, ConfigAttributeError) as exc:
         raise _unknown_key(cfg, exc) from None
     except ValidationError as exc:
@@ -132,7 +132,7 @@ def load_config(overrides: Sequence[str] = (), *, plugins: Any = None) -> DictCo
     except OmegaConfBaseException as exc:
         raise ConfigError(f"invalid config: {exc.msg}") from None
     validate_config(cfg, plugins=plugins)
-    return cfg  # type: ignore[return-value]
+    return cfg
 
 
 def validate_config(cfg: DictConfig, *, plugins: Any = None) -> None:
@@ -190,7 +190,7 @@ def _check_leaf(cfg: DictConfig, key: str) -> None:
     except OmegaConfBaseException:
         return  # an unknown key: the merge names it, with the closest valid key
     if isinstance(node, DictConfig):
-        inner = ", ".join(f"{key}.{k}" for k in node.keys()) or f"{key}.<name>"
+        inner = ", ".join(f"{key}.{k!s}" for k in node) or f"{key}.<name>"
         raise ConfigError(f"'{key}' is a section, not a setting; set its keys: {inner}")
 
 
@@ -235,7 +235,7 @@ def _unknown_key(cfg: DictConfig, exc: OmegaConfBaseException) -> ConfigError:
     full_key = str(exc.full_key or "")
     parent, _, leaf = full_key.rpartition(".")
     node = OmegaConf.select(cfg, parent) if parent else cfg
-    valid = list(node.keys()) if isinstance(node, DictConfig) else []
+    valid = [str(k) for k in node] if isinstance(node, DictConfig) else []
     hint = did_you_mean(leaf, valid)
     where = f" under '{parent}'" if parent else ""
     prefix = f"{parent}." if parent else ""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from collections.abc import Mapping
 from dataclasses import asdict
 from typing import TYPE_CHECKING, Any
 
@@ -30,7 +31,7 @@ def _tool_rgba(color: str) -> tuple[float, float, float, float]:
 
 
 def tool_primitives(sim: Any, poses: dict[str, np.ndarray] | None = None, apertures: dict[str, float] | None = None,
-                    rgba: dict[str, tuple[float, ...]] | None = None) -> list[Any]:
+                    rgba: Mapping[str, tuple[float, ...]] | None = None) -> list[Any]:
     """Every tool of ``sim`` as :class:`pasta.io.ToolPrimitive` s (shapes from its ToolSpec, in its colour),
     at its current pose and aperture, or at ``poses`` / ``apertures`` (tool -> (7,) pose / aperture) where
     they name it. ``rgba``: tool -> colour, converted once by the caller (default: from each ToolSpec)."""

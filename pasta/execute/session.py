@@ -225,8 +225,8 @@ def build_session(task: str | None = None, overrides: Sequence[str] = (), *, plu
     skill_configs = {n: section(cfg, f"skill.{n}") for n in (cfg.get("skill") or {})}
     task_obj = plugins.tasks.load(name)(section(cfg, "task"), section(cfg, "sim"), skill_configs=skill_configs)
     steps = split_names(cfg.skeleton, "skeleton")
-    given = steps if steps != ["task"] else []  # a given skeleton sets the horizon (as in `pasta plan`)
-    horizon = int(cfg.horizon or len(given) or task_obj.horizon)
+    given_steps = steps if steps != ["task"] else []  # a given skeleton sets the horizon (as in `pasta plan`)
+    horizon = int(cfg.horizon or len(given_steps) or task_obj.horizon)
     if steps == ["task"] and horizon > task_obj.horizon:
         raise ConfigError(f"horizon={horizon}: skeleton=task plans the task's {task_obj.horizon}-step chain "
                           f"({','.join(task_obj.skeleton)}); omit horizon= or give horizon<={task_obj.horizon}")

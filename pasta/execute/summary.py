@@ -135,6 +135,7 @@ def build_summary(
         if ex is None:
             panels.append((f"{label}\nnot executed (planned sub-goal only)", layers, (), None))
             continue
+        assert dough is not None  # an executed step has its observed dough (summary_steps)
         layers.append((dough, _DOUGH_COLOUR, _MARKER))
         path = None
         if ex.path is not None:
@@ -181,7 +182,8 @@ def build_summary(
     handles: list[Any] = [dot(_DOUGH_COLOUR, 4), dot(_PLANNED_COLOUR, 5), dot(_GOAL_COLOUR, 5)]
     labels = ["observed dough (initial, after each step, final)", "planned sub-goal of the step", "goal"]
     for name, rgba in tools_seen.items():
-        handles.append(Patch(facecolor=(*rgba[:3], 0.3), edgecolor=rgba, linewidth=1.2))
+        red, green, blue, alpha = (float(v) for v in rgba[:4])
+        handles.append(Patch(facecolor=(red, green, blue, 0.3), edgecolor=(red, green, blue, alpha), linewidth=1.2))
         labels.append(f"{name} (tool)")
     if any(path is not None for *_, path in panels):
         handles.append(Line2D([], [], ls="--", lw=0.9, color="0.3", marker="o", ms=3.5, mfc="none", markevery=[0]))

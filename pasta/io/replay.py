@@ -291,13 +291,13 @@ def export_frames(
             if t_tools > frames[-1][0]:
                 break
             for p in prims:
-                if base_name(p.name) not in legend and within(p, *box):
+                if base_name(p.name) not in legend and within(p, box[0], box[1]):
                     legend[base_name(p.name)] = tuple(p.color)
         pngs = []
         for k, (t, pts, colors) in enumerate(frames):
             fig = _frame_figure(topic, t, pts, colors, _tools_at(track, t), box, up, legend)
             png = out_dir / f"{_slug(topic)}_{k:05d}.png"
-            save_with(png, lambda fh, fig=fig: fig.savefig(fh, format="png"))
+            save_with(png, functools.partial(fig.savefig, format="png"))
             pngs.append(png)
         images = [Image.open(p).convert("RGB") for p in pngs]
         gif = out_dir / f"{_slug(topic)}.gif"
@@ -345,7 +345,8 @@ def _frame_figure(topic: str, t: int, pts: np.ndarray, colors: np.ndarray | None
         ax.tick_params(labelsize=7)
     fig.suptitle(f"{topic}  t={_secs(t)}", fontsize=10)
     if legend:
-        handles = [Patch(facecolor=(*c[:3], 0.3), edgecolor=c, linewidth=1.2) for c in legend.values()]
+        handles = [Patch(facecolor=(c[0], c[1], c[2], 0.3), edgecolor=(c[0], c[1], c[2], c[3]), linewidth=1.2)
+                   for c in legend.values()]
         fig.legend(handles, list(legend), loc="outside lower center", ncols=min(len(legend), 6), fontsize=8,
                    frameon=False)
     return fig

@@ -67,7 +67,7 @@ def surface_samples(tool: Any) -> np.ndarray:
     elif kind == "cylinder":
         a = np.linspace(0.0, 2 * math.pi, _RING, endpoint=False)
         ring = np.stack([np.cos(a) * half[0], np.sin(a) * half[1], np.zeros_like(a)], 1)
-        local = np.concatenate([ring + [0.0, 0.0, -half[2]], ring + [0.0, 0.0, half[2]]])
+        local = np.concatenate([ring + np.array([0.0, 0.0, -half[2]]), ring + np.array([0.0, 0.0, half[2]])])
     elif kind == "sphere":
         lat = np.linspace(-math.pi / 2, math.pi / 2, _RING // 2 + 1)
         lon = np.linspace(0.0, 2 * math.pi, _RING, endpoint=False)
@@ -107,7 +107,7 @@ def outline(tool: Any, plane: tuple[int, int]) -> np.ndarray:
     return _hull(surface_samples(tool)[:, list(plane)])
 
 
-def within(tool: Any, lo: Sequence[float], hi: Sequence[float]) -> bool:
+def within(tool: Any, lo: Sequence[float] | np.ndarray, hi: Sequence[float] | np.ndarray) -> bool:
     """Whether the primitive's bounding box meets the world box ``lo``..``hi`` (3,) (a parked tool does not)."""
     pts = surface_samples(tool)
     return bool(np.all(pts.max(0) >= np.asarray(lo)) and np.all(pts.min(0) <= np.asarray(hi)))

@@ -53,7 +53,8 @@ class SkillTask(Task):
         if self.config.scene != "default":  # the variant's settings, under any the run config gives
             from pasta.plugins import get_plugins
 
-            base = self.skill_configs.get(name) or get_plugins().skills.info(name).config()
+            config_class = get_plugins().skills.info(name).config
+            base = self.skill_configs.get(name) or (config_class() if config_class is not None else None)
             self.skill_configs[name] = variant_config(base, cls, self.config.scene)
 
     @property
