@@ -341,7 +341,7 @@ def test_misleading_cloud_file_messages_name_the_real_problem(tmp_path, analytic
     noise.write_bytes(np.random.default_rng(0).bytes(4096))
     (tmp_path / "a_dir.npy").mkdir()
     for bad, message in [(noise, "is not a .npy file (it does not start with the NumPy magic bytes"),
-                         (tmp_path / "a_dir.npy", "is a directory; give a cloud file")]:
+                         (tmp_path / "a_dir.npy", "is a directory; give a file")]:
         assert main(["plan", f"obs={bad}", f"goal={goal}", f"out={tmp_path / 'o'}", *ARGS]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and message in err[0] and "pickled" not in err[0], err
