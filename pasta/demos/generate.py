@@ -232,11 +232,14 @@ class DemoWriter:
         return int(arrays["action"].shape[0]), time.perf_counter() - t0
 
 
-def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int, points: int = 500) -> float:
-    """The Chamfer distance (m^2) between the dough before and after a demonstration; raises :class:`InputError`
-    when it is below the distance at which pasta takes a piece for its goal (the skill's ``at_goal``, else
-    ``perception.unchanged_threshold``): such a step would never be planned or run, so its demonstrations
-    would teach nothing."""
+def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int, points: int = 500) -> float | None:
+    """For a skill that turns one piece into one (``n_in == n_out == 1``: its demo scene is that piece), the
+    Chamfer distance (m^2) between the dough before and after a demonstration; raises :class:`InputError` when
+    it is below the distance at which pasta takes a piece for its goal (the skill's ``at_goal``, else
+    ``perception.unchanged_threshold``): such a step would never be planned or run, so its demonstrations would
+    teach nothing. A skill that changes the number of pieces changes the scene whatever the distance (None)."""
+    if skill.n_in != 1 or skill.n_out != 1:
+        return None
     from pasta.core.errors import InputError
     from pasta.core.matching import UNCHANGED_THRESHOLD
     from pasta.core.metrics import chamfer, sample_points
