@@ -349,12 +349,15 @@ def _generate(cfg: DemoConfig, backend: BackendConfig, *, progress: bool, max_at
     t0 = time.perf_counter()
     steps: list[int] = []
     failures: dict[int, str] = {}
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from pasta.core.progress import on_terminal
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
     workers = cfg.workers if backend.name == "ray" or len(todo) > 1 else 0
-    try:
-        with Progress(*columns, disable=not progress or not todo) as bar:
+    try:  # the bar on stderr, a terminal only: stdout keeps the command's result line
+        with Progress(*columns, console=Console(stderr=True), disable=not (todo and on_terminal(progress))) as bar:
             task = bar.add_task(f"demos {cfg.skill}", total=len(todo))
             for outcome in map_jobs(demo_init, demo_job, asdict(cfg), todo, backend=backend, workers=workers,
                                     max_attempts=max_attempts, deadline_s=backend.deadline_s or demo_deadline(cfg),
