@@ -25,8 +25,22 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {one_line(message)} (`{self.prog} --help` shows the usage)\n")
 
 
+#: the one style of every command, stated in ``pasta --help``
+STYLE = """one style for every command:
+  settings   key=value, e.g. `pasta run task=crs horizon=3`; a later item of the same key wins; an unknown
+             key is one error line naming the closest valid key. `pasta config [key=value ...]` lists
+             the run config that plan, run and eval read; each command's --help lists its own keys
+  modes      --flags, e.g. `pasta replay RUN.mcap --verify`, `pasta plugins --json`; anywhere on the line
+  threads=N  on every command that computes (plan, run, eval, demos, train, pipeline, replay): its CPU
+             threads (torch's, or the simulator's where the simulator computes); 0: the library's default
+  progress   bars with an ETA (planning: iterations and candidates) on stderr when it is a terminal; a
+             pipe or a log file gets the result lines only
+exit codes: 0 ok, 1 the work failed, 2 usage (a bad command, key or value), 3 a plan flagged unreachable"""
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="pasta", description="Plan and execute multi-tool dough manipulation (PASTA).")
+    parser = _Parser(prog="pasta", description="Plan and execute multi-tool dough manipulation (PASTA).",
+                     epilog=STYLE, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"pasta {pasta.__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for info in sorted(pkgutil.iter_modules(pasta.commands.__path__), key=lambda m: m.name):
@@ -42,6 +56,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args, extra = build_parser().parse_known_args(argv)
+    if extra and isinstance(getattr(args, "overrides", None), list):
+        # argparse fills a `key=value ...` positional from the items before the first --flag only; the
+        # settings after a flag are the command's settings all the same (modes go anywhere), in their order
+        args.overrides += [item for item in extra if not item.startswith("-")]
+        extra = [item for item in extra if item.startswith("-")]
     if extra:  # named by the command's own parser: `pasta run: error: unrecognized arguments: ...`
         args.commands[args.command].error(f"unrecognized arguments: {' '.join(extra)}")
     with warnings.catch_warnings():

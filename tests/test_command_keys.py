@@ -354,7 +354,7 @@ def test_pipeline(sandbox, data):
     assert_clean(["pipeline", *data.draw(items(pipeline_keys(), ["out=models", "data=demos"]))], sandbox / "work")
 
 
-# --------------------------------------------------------------------------- argparse commands (options)
+# ------------------------------------------------------------------------------ commands with mode flags
 
 
 def _subparser(command: str) -> argparse.ArgumentParser:
@@ -363,36 +363,105 @@ def _subparser(command: str) -> argparse.ArgumentParser:
     return sub.choices[command]
 
 
+def _flags(command: str) -> list[str]:
+    """The mode flags of a command, found from its parser (every option but --help)."""
+    return [a.option_strings[0] for a in _subparser(command)._actions if a.option_strings and a.dest != "help"]
+
+
 @st.composite
-def options(draw, command: str) -> list[str]:
-    """Options of an argparse command, found from its parser: flags, and options with hostile values."""
-    out: list[str] = []
-    actions = [a for a in _subparser(command)._actions if a.option_strings and a.dest != "help"]
-    for _ in range(draw(st.integers(0, 4))):
-        action = draw(st.sampled_from(actions))
-        out.append(draw(st.sampled_from(action.option_strings)))
-        if action.nargs != 0:
-            choices = [str(c) for c in action.choices or ()]
-            default = action.default if action.default not in (None, False) else None
-            out.append(draw(st.one_of(values(default), *( [st.sampled_from(choices)] if choices else []))))
+def with_flags(draw, command: str, argv: list[str]) -> list[str]:
+    """``argv`` with the command's mode flags put in at drawn places: modes go anywhere on the line."""
+    out = list(argv)
+    for _ in range(draw(st.integers(0, 3))):
+        out.insert(draw(st.integers(0, len(out))), draw(st.sampled_from(_flags(command))))
     return out
 
 
 @SETTINGS
 @given(data=st.data())
 def test_replay(sandbox, data):
+    from pasta.io.replay import ReplayArgs
+
     run_file = data.draw(st.one_of(st.just(str(sandbox / "run.mcap")), values()))
-    assert_clean(["replay", run_file, *data.draw(options("replay"))], sandbox / "work")
+    argv = [run_file, *data.draw(items(dataclass_keys(ReplayArgs), []))]
+    assert_clean(["replay", *data.draw(with_flags("replay", argv))], sandbox / "work")
 
 
 @SETTINGS
 @given(data=st.data())
 def test_plugins(sandbox, data):
+    from pasta.commands.plugins import PluginsArgs
     from pasta.plugins import get_plugins
 
     # `pasta plugins` exits 1 when an installed plugin failed to load (the environment's, not a usage error)
     broken = bool(get_plugins(report=False).failures)
-    assert_clean(["plugins", *data.draw(options("plugins"))], sandbox / "work", ok=(0, 1) if broken else (0,))
+    argv = data.draw(with_flags("plugins", data.draw(items(dataclass_keys(PluginsArgs), []))))
+    assert_clean(["plugins", *argv], sandbox / "work", ok=(0, 1) if broken else (0,))
+
+
+def test_settings_are_key_value_and_modes_are_flags():
+    """The one style of `pasta --help`: no option of any command takes a value (a setting is key=value)."""
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    for name in commands:
+        valued = [a.option_strings[0] for a in _subparser(name)._actions if a.option_strings and a.nargs != 0]
+        assert not valued, (name, valued)
+
+
+# ---------------------------------------------------------------------------------------------- threads=N
+
+#: the commands that only print; every other command computes and takes threads=N
+PRINTING = ("config", "plugins")
+
+
+def _computing_argv(command: str, root: Path, dataset: tuple[Path, Path]) -> list[str]:
+    """Items with which ``command`` (``train MODULE``: one module) reaches its work."""
+    data, models = dataset
+    if command.startswith("train "):
+        module = command.split()[1]
+        need = {"data": f"data={data}", "out": f"out={models}", "skill": "skill=cut"}
+        base = {"vae": ["data", "out"], "feasibility": ["data", "out", "skill"], "cost": ["data", "out"],
+                "policy": ["data", "out", "skill"], "reset": ["data", "out", "skill"], "select": ["out", "skill"],
+                "evaluate": []}[module]
+        return ["train", module, *(need[k] for k in base)]
+    obs, goal = _cloud_files(root)
+    return {"plan": ["plan", f"obs={obs}", f"goal={goal}", "out=plan_out"],
+            "run": ["run", "task=crs"],
+            "eval": ["eval", "task=crs", "num=2", "out=runs"],
+            "demos": ["demos", "skill=cut", "num=2", "out=demos", "workers=0"],
+            "pipeline": ["pipeline", "out=models", "data=demos", "stages=demos", "skills=cut"],
+            "replay": ["replay", str(root / "run.mcap"), "--verify"]}[command]
+
+
+COMPUTING = ["plan", "run", "eval", "demos", "pipeline", "replay", *(f"train {m}" for m in TRAIN_MODULES)]
+
+
+def test_every_command_is_computing_or_printing():
+    commands = set(next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices)
+    assert commands == {c.split()[0] for c in COMPUTING} | set(PRINTING)
+
+
+def test_help_states_the_one_style(capsys):
+    import re
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    text = capsys.readouterr().out
+    assert exc.value.code == 0
+    for needle in ("settings   key=value", "a later item of the same key wins", "`pasta config", "modes      --flags",
+                   "exit codes: 0 ok, 1 the work failed, 2 usage", "3 a plan flagged unreachable"):
+        assert needle in text, needle
+    named = re.search(r"threads=N  on every command that computes \(([^)]*)\)", text)
+    assert named and set(named.group(1).split(", ")) == {c.split()[0] for c in COMPUTING}, text
+
+
+@pytest.mark.parametrize("command", COMPUTING)
+def test_every_computing_command_takes_threads(command, sandbox, dataset):
+    argv = _computing_argv(command, sandbox, dataset)
+    for value in ("0", "2"):
+        code, err = invoke([*argv, f"threads={value}"])
+        assert code == 0 and "Traceback" not in err, (argv, value, err)  # checked, then the work starts
+    assert "threads=-1: must be an integer in [0, " in _one_error([*argv, "threads=-1"])
+    assert not any((sandbox / "work").iterdir())
 
 
 def test_every_command_is_covered():
@@ -473,13 +542,19 @@ def test_demos_seed_is_checked_before_a_simulator_starts(tmp_path, monkeypatch):
     (["config", "execute=heuristic"], "'execute' is a section, not a setting; set its keys: execute.controller"),
     (["config", "task.distractors=4"], "'task.distractors' is a setting of the chosen task, and none is chosen"),
     (["config", "models=[a, b]"], "models=[a, b]: must be a single value, not a list or a mapping"),
-    (["plugins", "--kind", "nosuch"], "argument --kind: invalid choice: 'nosuch'"),
+    (["plugins", "kind=nosuch"], "kind=nosuch: must be one of skill, tool, planner, encoder, cost_model, task"),
+    (["plugins", "--json", "knd=skill"], "unknown key 'knd' for `pasta plugins`; did you mean 'kind'?"),
+    (["plugins", "--kind", "skill"], "unrecognized arguments: --kind"),
     (["run", "--x"], "unrecognized arguments: --x"),
     (["eval", "task=crs", "num=1001"], "num=1001: must be an integer in [1, 1000]"),
     (["eval", "task=crs", "workers=100000"], "workers=100000: must be an integer in [0, 1024]"),
     (["plan", "obs=no/such.npy", "goal=no/such.npy"], "obs=no/such.npy: the file does not exist"),
-    (["replay", "run.mcap", "--every", "0"], "--every=0: must be an integer >= 1"),
-    (["replay", "run.mcap", "--fps", "nan"], "--fps=nan: must be a finite number in (0, 1000]"),
+    (["replay", "run.mcap", "every=0"], "every=0: must be an integer >= 1"),
+    (["replay", "run.mcap", "fps=nan"], "fps=nan: must be a finite number in (0, 1000]"),
+    (["replay", "run.mcap", "--verify", "tolerence=1e-3"], "unknown key 'tolerence' for `pasta replay`; did you mean 'tolerance'?"),
+    (["replay", "run.mcap", "up_axis=w", "--recover"], "up_axis=w: must be one of x, y, z"),
+    (["replay", "run.mcap", "--every", "2"], "unrecognized arguments: --every"),
+    (["demos", "skill=cut", "thread=1"], "unknown key 'thread' for `pasta demos`; did you mean 'threads'?"),
     (["train", "vae", "data=no/such", "out=models"], "data=no/such: the directory does not exist"),
     (["train", "vae", "data=.", "out=models", "lr=nan"], "lr=nan: must be a finite number in (0, 1]"),
     (["train", "vae", "data=.", "out=models", "emd_weight=inf"], "emd_weight=inf: must be a finite number >= 0"),

@@ -1,5 +1,6 @@
 """The README and the user docs name only settings that exist: every ``section.key=`` of the run config and
-every ``key=value`` of a ``pasta plan|run|eval|config`` command line they show is a key pasta accepts.
+every ``key=value`` of a ``pasta plan|run|eval|config|demos|replay|plugins`` command line they show is a key
+pasta accepts.
 
 History (CHANGELOG.md, docs/experiments/) may name settings that were deleted since; it is not checked.
 """
@@ -20,7 +21,8 @@ DOTTED = re.compile(r"(?<![\w./-])((?:" + "|".join(SECTIONS) + r")\.[A-Za-z_][\w
 QUOTED = re.compile(r"`((?:execute|perception|check)\.[A-Za-z_][\w.]*)(?:=[^`]*)?`")
 #: misspelt on purpose: the README shows the error a typo gets
 DELIBERATE = {"planner.num_smaples"}
-COMMAND = re.compile(r"(?:^|[\s`(])(?:\.venv/bin/)?(?:pasta|python -m pasta) (plan|run|eval|config)\b([^`\n]*)")
+COMMAND = re.compile(r"(?:^|[\s`(])(?:\.venv/bin/)?(?:pasta|python -m pasta) (plan|run|eval|config|demos|replay|plugins)\b"
+                     r"([^`\n]*)")
 
 
 def _fields(obj) -> set[str]:
@@ -56,9 +58,14 @@ def valid_keys() -> dict[str, set[str]]:
     keys |= {f"sim.tool_friction.{t}" for t in plugins.tools.names()} | {"controller"} | set(_fields(RunConfig))
     from pasta.distributed import BACKEND_KEYS
 
+    from pasta.commands.plugins import PluginsArgs
+    from pasta.demos import DemoConfig
+    from pasta.io.replay import ReplayArgs
+
     backend = set(BACKEND_KEYS)
     return {"config": keys, "run": keys | _fields(RunArgs), "eval": keys | _fields(EvalArgs) | backend,
-            "plan": keys | set(COMMAND_KEYS)}
+            "plan": keys | set(COMMAND_KEYS), "demos": _fields(DemoConfig) | backend, "replay": _fields(ReplayArgs),
+            "plugins": _fields(PluginsArgs)}
 
 
 def _mentions():

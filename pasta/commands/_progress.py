@@ -4,8 +4,7 @@ log file or a pipe gets the command's result lines and nothing else."""
 
 from __future__ import annotations
 
-import sys
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import Any
 
@@ -16,7 +15,7 @@ from pasta.core import progress
 def planning_bar(enabled: bool | None = None) -> Iterator[None]:
     """Draw the planner's progress while the block runs (``enabled``: default, stderr is a terminal)."""
     if enabled is None:
-        enabled = sys.stderr.isatty()
+        enabled = progress.on_terminal()
     if not enabled:
         yield
         return
@@ -37,3 +36,21 @@ def planning_bar(enabled: bool | None = None) -> Iterator[None]:
 
         with progress.listening(show):
             yield
+
+
+def duration(seconds: float) -> str:
+    """``seconds`` as ``45s``, ``3m20s`` or ``2h05m``."""
+    total = max(0, int(round(seconds)))
+    hours, rest = divmod(total, 3600)
+    minutes, secs = divmod(rest, 60)
+    if hours:
+        return f"{hours}h{minutes:02d}m"
+    return f"{minutes}m{secs:02d}s" if minutes else f"{secs}s"
+
+
+def eta(wall_s: Sequence[float], remaining: int, workers: int = 1) -> str:
+    """``ETA 3m20s``: the mean wall time of the finished items times the ``remaining`` ones, over the
+    ``workers`` running at once; empty before the first finishes and after the last."""
+    if not wall_s or remaining <= 0:
+        return ""
+    return f"ETA {duration(sum(wall_s) / len(wall_s) * remaining / max(1, workers))}"

@@ -1,5 +1,5 @@
-"""``pasta demos skill=cut num=200 out=DIR [workers=2] [seed=0] [backend=local|ray] [deadline_s=0]``: generate expert
-demonstrations."""
+"""``pasta demos skill=cut num=200 out=DIR [workers=2] [seed=0] [threads=0] [backend=local|ray] [deadline_s=0]``:
+generate expert demonstrations."""
 
 from __future__ import annotations
 
@@ -8,14 +8,15 @@ import sys
 
 HELP = ("generate demonstrations of a skill with its scripted expert on the scenes its plugin draws "
         "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points, scene, "
-        "backend=local|ray, ray.address, ray.num_cpus, deadline_s); any registered skill whose plugin defines "
+        "threads, backend=local|ray, ray.address, ray.num_cpus, deadline_s); threads=N: the simulator's CPU threads "
+        "in each worker (0, the default: the simulator's default, 2); any registered skill whose plugin defines "
         "demo_scene and an expert; resumable: existing demos are kept; backend=ray runs them as Ray tasks; a worker "
         "still on one demo after deadline_s seconds (0, the default: derived from the skill's max_steps and "
         "n_particles, about 11-13 min at the defaults) is given up and the demo retried (docs/scaling.md)")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("overrides", nargs="*", metavar="key=value", help="skill=cut num=200 out=DIR workers=2 seed=0")
+    parser.add_argument("overrides", nargs="*", metavar="key=value", help="skill=cut num=200 out=DIR workers=2 seed=0 threads=0")
 
 
 def run(args: argparse.Namespace) -> int:

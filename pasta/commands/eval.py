@@ -6,7 +6,8 @@ finished episode is appended to ``OUT/<task>_<method>[_<setting>...][_val].jsonl
 so an interrupted evaluation resumes where it stopped (``resume=false`` starts over; a file of other settings
 is never resumed); the summary (mean +/- std
 of the normalised improvement, success rate, planning and execution seconds) is printed and written
-next to it as ``.json``. With ``workers=N`` or ``backend=ray``, a worker still on one episode after
+next to it as ``.json``. Each episode's line (stderr) ends with an ETA: this run's mean episode time times
+the episodes left, over the workers. With ``workers=N`` or ``backend=ray``, a worker still on one episode after
 ``deadline_s`` seconds (default :func:`episode_deadline`, from the task's horizon and step limits) is given
 up and the episode retried once, then reported as failed.
 """
@@ -190,6 +191,7 @@ def episode_deadline(session: Any) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
+    from pasta.commands._progress import eta
     from pasta.commands.run import print_skill_warning, split_command_keys
     from pasta.config.validate import check_output_dir, check_output_file
     from pasta.distributed import BackendError, map_jobs, split_backend_args
@@ -239,28 +241,38 @@ def run(args: argparse.Namespace) -> int:
     deadline = backend.deadline_s or episode_deadline(session)  # not used by episodes run in this process
     failed: dict[int, str] = {}
     refused: dict[int, int] = {}  # seed -> exit code of an episode refused for a named reason
+    walls: list[float] = []  # wall seconds of the episodes finished in this run (not the resumed ones: another machine)
+
+    def left() -> str:
+        """``, ETA 3m20s`` after an episode's line: this run's mean episode time x the episodes left / the workers."""
+        # workers=0 counts as one at a time: with backend=ray it runs as many as the cluster has CPUs, and the
+        # ETA is then an upper bound
+        text = eta(walls, len(seeds) - len(done) - len(failed), opts.workers or 1)
+        return f", {text}" if text else ""
+
     try:
         for outcome in map_jobs(eval_init, eval_job, setup, todo, backend=backend, workers=opts.workers,
                                 deadline_s=deadline, label="episode", prog="pasta eval", state=state):
             seed = int(outcome.item)
             if not outcome.ok:
                 failed[seed] = outcome.error or ""
-                print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: failed, {failed[seed].splitlines()[0]}",
-                      file=sys.stderr, flush=True)
+                print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: failed, {failed[seed].splitlines()[0]}"
+                      f"{left()}", file=sys.stderr, flush=True)
                 continue
             row = outcome.value
             if "refused" in row:  # nothing of this episode ran: reported, not written
                 failed[seed] = row["refused"]
                 refused[seed] = int(row["exit_code"])
-                print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: refused, {row['refused']}",
+                print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: refused, {row['refused']}{left()}",
                       file=sys.stderr, flush=True)
                 continue
             append_text(path, json.dumps(row) + "\n")  # one line per finished episode: nothing is lost on interruption
             done[seed] = row
+            walls.append(float(row.get("wall_s", 0.0)))
             skel = "-".join(row.get("skeleton", [])) or "ground truth"
             print(f"[{len(done) + len(failed)}/{len(seeds)}] seed {seed}: {skel:<24} improvement {row['improvement']:+.3f} "
                   f"{'success' if row['success'] else 'failure'}  (plan {row['plan_s']:.1f} s, execute {row['execute_s']:.1f} s)"
-                  f"{where}", file=sys.stderr, flush=True)
+                  f"{where}{left()}", file=sys.stderr, flush=True)
     except BackendError as exc:  # workers could not start, or the cluster is unreachable: not a usage error
         print(f"pasta eval: error: {exc} ({len(done)} of {len(seeds)} episodes are in {path}; "
               "run the same command again to continue)", file=sys.stderr)

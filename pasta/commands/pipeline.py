@@ -36,7 +36,10 @@ EPILOG = """arguments (key=value):
                          auto: the skills whose plugin asks for it (built-ins: cut, roll, lift); empty: none
   only=UNIT[,UNIT]       run these units only: a unit (feasibility/cut) or a whole stage (cost)
   force=true             rerun the selected units even when done (demonstrations are never deleted)
-  progress=false         hide the inner progress bars
+  progress=false         hide the inner progress bars (drawn on stderr when it is a terminal)
+  threads=0              CPU threads of every unit: torch's in the training units, the simulator's in
+                         the demos units; 0: the stages' own (1 for training, the simulator's default
+                         for demos); <stage>.threads= still wins; never causes a rerun
   <stage>.<key>=value    a setting of every unit of a stage, e.g. vae.epochs=5, policy.batch_size=16
   <stage>.<skill>.<key>=value
                          a setting of one skill's unit, e.g. feasibility.push.epochs=30

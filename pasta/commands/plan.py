@@ -127,6 +127,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         from pasta.plugins import get_plugins
 
         plugins = get_plugins()
+    from pasta.commands._progress import planning_bar
     from pasta.commands.run import apply_threads
     from pasta.config import load_config, section, split_names
     from pasta.execute.episode import perceive_and_plan
@@ -165,11 +166,12 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
 
         attach_feasibility(needs, root, latent_dim=encoder.latent_dim)
     planner = plugins.planners.create(cfg.planner.name, section(cfg, "planner"))
-    seen = perceive_and_plan(clouds["obs"], clouds["goal"], planner=planner, planner_name=cfg.planner.name,
-                             encoder_name=cfg.encoder.name,
-                             skills=skills, encoder=encoder, cost=cost,
-                             horizon=int(cfg.horizon or len(skeleton or ()) or DEFAULT_HORIZON),
-                             seed=int(cfg.seed), skeleton=skeleton, perception=perception, check=check)
+    with planning_bar():  # iterations, candidates and an ETA, as `pasta run` shows them; on a terminal only
+        seen = perceive_and_plan(clouds["obs"], clouds["goal"], planner=planner, planner_name=cfg.planner.name,
+                                 encoder_name=cfg.encoder.name,
+                                 skills=skills, encoder=encoder, cost=cost,
+                                 horizon=int(cfg.horizon or len(skeleton or ()) or DEFAULT_HORIZON),
+                                 seed=int(cfg.seed), skeleton=skeleton, perception=perception, check=check)
     labels = {name: point_labels(loaded[name], kept[name], kept_points[name], seen.clouds[name], seen.labels[name])
               for name in ("obs", "goal")}
     plan = dataclasses.replace(seen.plan, info={**seen.plan.info, "input": {

@@ -5,15 +5,30 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import dataclass
 
 from pasta.plugins import get_plugins
 from pasta.plugins.registry import KINDS
 
-HELP = "list the registered plugins (name, kind, cardinality, source distribution and version); exit 1 if one failed"
+HELP = ("list the registered plugins (name, kind, cardinality, source distribution and version); exit 1 if one "
+        "failed ([kind=NAME] [--json])")
+
+
+@dataclass
+class PluginsArgs:
+    """The settings of ``pasta plugins`` (``key=value``)."""
+
+    kind: str = ""  # only this kind (skill, tool, planner, ...); empty: every kind
+
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_choice
+
+        if self.kind:
+            check_choice(self.kind, "kind", KINDS)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--kind", choices=list(KINDS), help="only this kind")
+    parser.add_argument("overrides", nargs="*", metavar="key=value", help=f"kind=NAME: only this kind ({', '.join(KINDS)})")
     parser.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -25,10 +40,13 @@ def _detail(info) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    from pasta.config.overrides import build, split_overrides
+
+    opts = build(PluginsArgs, split_overrides(args.overrides), command="pasta plugins")
     plugins = get_plugins(report=False)  # this command lists the failures itself, once
     rows = []
     for kind, registry in plugins.registries.items():
-        if args.kind and kind != args.kind:
+        if opts.kind and kind != opts.kind:
             continue
         for info in registry:
             rows.append({"kind": kind, "name": info.name, "cardinality": _detail(info), "distribution": info.distribution,

@@ -7,17 +7,21 @@ and :func:`active` lets a reporter skip computing what it would report.
 
 Third-party planners report the same way: ``pasta.core.progress.report("optimise", it, iterations,
 best_score=...)``.
+
+Every progress bar pasta draws (planning, demonstrations, training) goes to stderr and only when
+:func:`on_terminal` says so: a pipe or a log file gets the command's result lines and nothing else.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Progress", "active", "listening", "report"]
+__all__ = ["Progress", "active", "listening", "on_terminal", "report"]
 
 
 @dataclass(frozen=True)
@@ -57,3 +61,11 @@ def listening(listener: Listener) -> Iterator[None]:
         yield
     finally:
         _listeners.reset(token)
+
+
+def on_terminal(enabled: bool = True) -> bool:
+    """Whether to draw a progress bar: ``enabled`` and stderr, where the bars go, is a terminal. Asked
+    explicitly because rich's bar, on a stream that is not a terminal, still prints its last state once
+    when it stops (a bar line in a log file)."""
+    isatty = getattr(sys.stderr, "isatty", None)
+    return bool(enabled) and callable(isatty) and bool(isatty())

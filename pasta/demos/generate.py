@@ -77,6 +77,8 @@ class DemoConfig:
         scene: ``"default"`` or a scene variant of the skill (:attr:`pasta.core.Skill.demo_variants`,
             e.g. push's ``"wide"``), usually added to a dataset with a larger ``num``
             (``num=350 scene=wide``: demos 200-349 in that variant).
+        threads: the simulator's CPU threads in each worker (Taichi's ``cpu_max_num_threads``; the
+            simulator is what computes here); 0: the simulator's default (:attr:`pasta.sim.SimConfig.cpu_threads`).
     """
 
     skill: str = ""
@@ -89,6 +91,7 @@ class DemoConfig:
     n_particles: int = 5000
     obs_points: int = 1000
     scene: str = "default"
+    threads: int = 0
 
 
 def demo_path(out: str | Path, skill: str, index: int) -> Path:
@@ -98,7 +101,7 @@ def demo_path(out: str | Path, skill: str, index: int) -> Path:
 def validate(cfg: DemoConfig) -> Path:
     """Check every argument before any work starts (nothing is created or written); returns the skill folder
     ``out/<skill>`` (created by :func:`generate_demos`)."""
-    from pasta.config.validate import check_int, check_output_dir, check_seed
+    from pasta.config.validate import check_int, check_output_dir, check_seed, check_threads
 
     if not cfg.skill:
         raise ConfigError(f"`pasta demos` needs skill=NAME; skills with demonstrations: {', '.join(demo_skills()) or 'none'}")
@@ -109,6 +112,7 @@ def validate(cfg: DemoConfig) -> Path:
     for name in ("settle_steps", "idle_steps"):
         check_int(getattr(cfg, name), name, low=0, high=MAX_IDLE)
     check_variant(cls, cfg.scene)
+    check_threads(cfg.threads, "threads")
     sim_config(cfg)  # the simulator's own checks (n_particles, obs_points), before any simulator starts
     check_output_dir(cfg.out, "out")
     folder = Path(cfg.out).expanduser() / cfg.skill
@@ -125,7 +129,8 @@ def sim_config(cfg: DemoConfig) -> Any:
 
     try:
         return SimConfig(n_particles=cfg.n_particles, obs_points=cfg.obs_points,
-                         max_particles=max(10000, cfg.n_particles))
+                         max_particles=max(10000, cfg.n_particles),
+                         cpu_threads=int(cfg.threads) or SimConfig.cpu_threads)  # threads=0: the simulator's default
     except (TypeError, ValueError) as exc:
         raise ConfigError(str(exc).removeprefix("sim.")) from None
 
@@ -352,12 +357,15 @@ def _generate(cfg: DemoConfig, backend: BackendConfig, *, progress: bool, max_at
     t0 = time.perf_counter()
     steps: list[int] = []
     failures: dict[int, str] = {}
+    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from pasta.core.progress import on_terminal
 
     columns = (TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(), TimeRemainingColumn())
     workers = cfg.workers if backend.name == "ray" or len(todo) > 1 else 0
-    try:
-        with Progress(*columns, disable=not progress or not todo) as bar:
+    try:  # the bar on stderr, a terminal only: stdout keeps the command's result line
+        with Progress(*columns, console=Console(stderr=True), disable=not (todo and on_terminal(progress))) as bar:
             task = bar.add_task(f"demos {cfg.skill}", total=len(todo))
             for outcome in map_jobs(demo_init, demo_job, asdict(cfg), todo, backend=backend, workers=workers,
                                     max_attempts=max_attempts, deadline_s=backend.deadline_s or demo_deadline(cfg),

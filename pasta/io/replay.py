@@ -2,8 +2,8 @@
 
 The CLI registers this module as a subcommand through :func:`add_arguments` and :func:`run`.
 
-Exit codes: 0 success; 1 ``--verify`` found a deviation above ``--tolerance`` (or could not
-verify); 2 the file could not be read (not MCAP, corrupt, truncated without ``--recover``, or a
+Exit codes: 0 success; 1 ``--verify`` found a deviation above ``tolerance=`` (or could not
+verify); 2 a bad setting, or the file could not be read (not MCAP, corrupt, truncated without ``--recover``, or a
 ``sim_config.json`` that is not a valid simulator config).
 """
 
@@ -16,6 +16,7 @@ import json
 import math
 import sys
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -32,39 +33,88 @@ EXIT_OK, EXIT_VERIFY_FAILED, EXIT_BAD_FILE = 0, 1, 2
 #: the prefix of its error lines, as every ``pasta`` command's
 PROG = "pasta replay"
 
-HELP = "print a run file's timeline, export PNG/GIF frames, recover a truncated file, or re-simulate and --verify it"
+HELP = ("print a run file's timeline, export PNG/GIF frames, recover a truncated file, or re-simulate and --verify it "
+        "(RUN.mcap [key=value ...] [--recover] [--verify])")
+
+EPILOG = """settings (key=value; a later item of the same key wins):
+  topics=a,b        only these topics in the timeline and the export (comma separated; default every topic)
+  export=DIR        write PNG frames (top and side views) and a GIF per cloud topic to DIR
+  every=1           export every K-th cloud
+  max_frames=300    export at most N frames per topic
+  fps=10            GIF frame rate, in (0, 1000]
+  up_axis=y         world up axis for the views: x, y or z
+  tolerance=1e-5    the largest deviation --verify accepts
+  threads=0         the simulator's CPU threads for --verify (Taichi: what computes here); 0: those of the
+                    logged run's sim config
+examples:
+  pasta replay RUN.mcap topics=/plan,/metrics
+  pasta replay RUN.mcap export=frames every=2 max_frames=100
+  pasta replay RUN.mcap.partial --recover --verify tolerance=1e-4
+exit codes: 0 ok; 1 --verify found a deviation above tolerance (or could not verify); 2 a bad setting, or a file
+that could not be read (not MCAP, corrupt, truncated without --recover, a bad sim_config.json)"""
+
+
+@dataclass
+class ReplayArgs:
+    """The settings of ``pasta replay`` (``key=value``; :data:`EPILOG` says what each does)."""
+
+    topics: str = ""  # comma separated; empty: every topic
+    export: str = ""  # a directory; empty: no export
+    every: int = 1
+    max_frames: int = 300
+    fps: float = 10.0
+    up_axis: str = "y"
+    tolerance: float = 1e-5
+    # the simulator is what computes here (--verify); the timeline and the export do not use threads
+    threads: int = 0
+
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_choice, check_int, check_number, check_output_dir, check_threads
+
+        check_int(self.every, "every", low=1)
+        check_int(self.max_frames, "max_frames", low=1)
+        check_number(self.fps, "fps", low=0.0, low_open=True, high=1000.0)
+        check_choice(self.up_axis, "up_axis", ("x", "y", "z"))
+        check_number(self.tolerance, "tolerance", low=0.0)
+        check_threads(self.threads, "threads")
+        if self.export:
+            check_output_dir(self.export, "export")
+        if self.topics.strip() and not self.topic_list():
+            raise ConfigError(f"topics={self.topics}: names no topic (give a,b or leave it out for every topic)")
+
+    def topic_list(self) -> list[str] | None:
+        """The topics named, or ``None`` for every topic."""
+        return [t.strip() for t in self.topics.split(",") if t.strip()] or None
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the ``replay`` options to ``parser``."""
+    """Add the ``replay`` arguments to ``parser``: the run file, settings as ``key=value``, modes as flags."""
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
+    parser.epilog = EPILOG
     parser.add_argument("run_file", metavar="RUN.mcap", help="run file written by pasta.io.RunLogger")
-    parser.add_argument(
-        "--topics",
-        nargs="+",
-        action="extend",
-        metavar="TOPIC",
-        help="only these topics (space or comma separated) in the timeline and the export",
-    )
-    parser.add_argument("--export", metavar="DIR", help="write PNG frames (top and side views) and a GIF per cloud topic")
-    parser.add_argument("--every", type=int, default=1, metavar="K", help="export every K-th cloud (default 1)")
-    parser.add_argument("--max-frames", type=int, default=300, metavar="N", help="export at most N frames per topic")
-    parser.add_argument("--fps", type=float, default=10.0, help="GIF frame rate (default 10)")
-    parser.add_argument("--up-axis", choices=("x", "y", "z"), default="y", help="world up axis for the views (default y)")
+    parser.add_argument("overrides", nargs="*", metavar="key=value", help="settings (below)")
     parser.add_argument("--recover", action="store_true", help="read a truncated file: every complete chunk before the cut")
     parser.add_argument(
         "--verify",
         action="store_true",
         help=f"restore {INITIAL_STATE}, re-apply {ACTIONS} in the simulator and compare the final dough",
     )
-    parser.add_argument("--tolerance", type=float, default=1e-5, help="max allowed deviation for --verify (default 1e-5)")
+
+
+def settings(items: list[str]) -> ReplayArgs:
+    """The ``key=value`` settings of ``pasta replay``, each checked (a one-line :class:`ConfigError`) before
+    any file is read."""
+    from pasta.config.overrides import build, split_overrides
+
+    return build(ReplayArgs, split_overrides(items), command=PROG)
 
 
 def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
     """Execute ``pasta replay`` with parsed ``args``; returns the exit code."""
     out = out or sys.stdout
     err = sys.stderr
-    check_options(args)  # every option, before the run file is opened
-    topics = _split_topics(args.topics)
+    opts = settings(list(args.overrides or ()))  # every setting, before the run file is opened
+    topics = opts.topic_list()
     try:
         reader = RunReader(args.run_file, recover=args.recover)
     except McapTruncatedError as e:
@@ -81,16 +131,16 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             elif reader.status == "failed":
                 print(f"warning: the logged run failed: {reader.error}", file=err)
             print_timeline(reader, topics, out)
-            if args.export:
+            if opts.export:
                 written = export_frames(
-                    reader, Path(args.export), topics, every=args.every, max_frames=args.max_frames,
-                    fps=args.fps, up_axis=args.up_axis,
+                    reader, Path(opts.export), topics, every=opts.every, max_frames=opts.max_frames,
+                    fps=opts.fps, up_axis=opts.up_axis,
                 )
                 for p in written:
                     print(f"wrote {p}", file=out)
             if args.verify:
                 try:
-                    ok, _dev = verify_run(reader, args.tolerance, out)
+                    ok, _dev = verify_run(reader, opts.tolerance, out, threads=opts.threads)
                 except McapFormatError:
                     raise
                 except ConfigError as e:  # the file's own sim_config.json is bad: a bad-file error, exit 2
@@ -104,29 +154,6 @@ def run(args: argparse.Namespace, out: TextIO | None = None) -> int:
             print(f"{PROG}: error: {e}", file=err)
             return EXIT_BAD_FILE
     return EXIT_OK
-
-
-def check_options(args: argparse.Namespace) -> None:
-    """Raise a one-line :class:`ConfigError` for an option value that cannot work (before any file is read)."""
-    from pasta.config.validate import check_int, check_number, check_output_dir
-
-    check_int(args.every, "--every", low=1)
-    check_int(args.max_frames, "--max-frames", low=1)
-    check_number(args.fps, "--fps", low=0.0, low_open=True, high=1000.0)
-    check_number(args.tolerance, "--tolerance", low=0.0)
-    if args.export is not None:
-        check_output_dir(args.export, "--export")
-    if args.topics is not None and not _split_topics(args.topics):
-        raise ConfigError("--topics names no topic")
-
-
-def _split_topics(values: list[str] | None) -> list[str] | None:
-    if not values:
-        return None
-    out: list[str] = []
-    for v in values:
-        out += [t for t in v.split(",") if t]
-    return out
 
 
 # ---------------------------------------------------------------------------------------------
@@ -356,10 +383,13 @@ def _frame_figure(topic: str, t: int, pts: np.ndarray, colors: np.ndarray | None
 # verify
 
 
-def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -> tuple[bool, float]:
+def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None, *,
+               threads: int = 0) -> tuple[bool, float]:
     """Restore ``initial_state.npz`` with the logged ``sim_config.json``, re-apply ``/actions`` in
     order and compare the final particle positions with ``final_state.npz`` (or the last ``/dough``
-    cloud). Prints the maximum absolute deviation; returns ``(deviation <= tolerance, deviation)``."""
+    cloud). Prints the maximum absolute deviation; returns ``(deviation <= tolerance, deviation)``.
+    ``threads`` (> 0): the simulator's CPU threads instead of the logged ones (Taichi's, when this process
+    starts it)."""
     out = out or sys.stdout
     say: Callable[[str], None] = lambda s: print(s, file=out)  # noqa: E731 - a one-line printer to out
     names = reader.attachment_names()
@@ -375,6 +405,8 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None) -
     from pasta.sim import Simulator, SimState  # lazy: only verify needs the simulator
 
     cfg = logged_sim_config(reader)
+    if threads > 0:
+        cfg = replace(cfg, cpu_threads=int(threads))
     state = SimState.load(io.BytesIO(reader.attachment(INITIAL_STATE)))
     sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     sim.set_state(state)

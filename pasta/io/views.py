@@ -1,4 +1,4 @@
-"""Top and side views of a scene in pictures (``pasta run summary=``, ``pasta replay --export``): the world box
+"""Top and side views of a scene in pictures (``pasta run summary=``, ``pasta replay export=``): the world box
 the views show, fitted to the dough, and the tools drawn as outlines in their colour.
 
 A tool primitive (:class:`pasta.io.ToolPrimitive`: a cube, cylinder or sphere of a size, at a pose, in a

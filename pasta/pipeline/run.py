@@ -97,6 +97,9 @@ class PipelineConfig:
         force: rerun every selected unit, done or not (demonstrations are never deleted).
         only: comma-separated units or stages to run, e.g. ``feasibility/cut,cost`` (empty: all).
         progress: draw the inner progress bars (stderr).
+        threads: CPU threads of every unit (torch's in the training units, the simulator's in the demos
+            units), over the stages' own (1 for training, the simulator's default for demos); 0: those;
+            ``<stage>.threads=`` still wins. Never causes a rerun.
     """
 
     data: str = "data/demos"
@@ -111,9 +114,10 @@ class PipelineConfig:
     force: bool = False
     only: str = ""
     progress: bool = True
+    threads: int = 0
 
     def __post_init__(self) -> None:
-        from pasta.config.validate import check_int
+        from pasta.config.validate import check_int, check_threads
         from pasta.demos.generate import MAX_DEMOS
         from pasta.distributed import MAX_WORKERS
 
@@ -123,6 +127,7 @@ class PipelineConfig:
         except ConfigError as exc:
             raise ConfigError(f"{exc} (-1: each variant's own number, 0: none)") from None
         check_int(self.workers, "workers", low=0, high=MAX_WORKERS)
+        check_threads(self.threads, "threads")
 
 
 @dataclass
@@ -250,10 +255,12 @@ def parse_arguments(items: Sequence[str] | Mapping[str, Any]) -> tuple[PipelineC
 
 
 def _unit_values(cfg: PipelineConfig, overrides: Overrides, st: Stage, skill: str | None) -> dict[str, Any]:
-    """Pipeline values < stage defaults < skill defaults < ``<stage>.key`` < ``<stage>.<skill>.key``."""
+    """Pipeline values < stage defaults < skill defaults < ``threads=N`` < ``<stage>.key`` < ``<stage>.<skill>.key``."""
     values = st.base_values(cfg, skill)
     values.update(st.defaults)
     values.update(skill_defaults(st.name, skill))
+    if cfg.threads:  # the pipeline's threads=N over the stages' threads=1, which are sized for a 2-core CPU
+        values["threads"] = cfg.threads
     values.update(overrides.get((st.name, None), {}))
     values.update(overrides.get((st.name, skill), {}) if skill else {})
     return values

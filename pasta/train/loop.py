@@ -202,8 +202,12 @@ def _resume(task: TrainTask, optimiser: torch.optim.Optimizer, cfg: LoopConfig, 
 
 
 def _progress(enabled: bool):
+    """The epochs bar, with an ETA, on stderr when it is a terminal (:func:`pasta.core.progress.on_terminal`)."""
     from rich.console import Console
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    from pasta.core.progress import on_terminal
 
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                    console=Console(file=sys.stderr), disable=not enabled, transient=False)
+                    TimeRemainingColumn(), console=Console(file=sys.stderr), disable=not on_terminal(enabled),
+                    transient=False)

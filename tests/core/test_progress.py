@@ -31,3 +31,17 @@ def test_the_latent_optimiser_reports_every_iteration_of_each_round():
         search(problem, [("split", "move")], LatentPlannerConfig(num_samples=8, iterations=5), torch.Generator().manual_seed(0))
     assert [(e.stage, e.done, e.total) for e in events] == [("optimise", i, 5) for i in range(6)]
     assert all(e.info["samples"] > 0 and isinstance(e.info["best_score"], float) for e in events)
+
+
+def test_bars_are_drawn_on_a_terminal_only(monkeypatch):
+    import io
+    import sys
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    assert not progress.on_terminal()  # a pipe or a log file: no bar
+    monkeypatch.setattr(sys, "stderr", Terminal())
+    assert progress.on_terminal() and not progress.on_terminal(False)  # progress=false

@@ -83,3 +83,33 @@ def test_reader_errors(tmp_path):
     # a folder of demonstrations without its manifest: the error names the command that writes it
     with pytest.raises(InputError, match=f"`pasta demos skill=knead num=N out={tmp_path}` writes it"):
         load_demos(tmp_path)
+
+
+def test_threads_set_the_simulators_cpu_threads():
+    from pasta.demos.generate import sim_config
+    from pasta.sim import SimConfig
+
+    assert sim_config(DemoConfig(skill="push", threads=3)).cpu_threads == 3
+    assert sim_config(DemoConfig(skill="push")).cpu_threads == SimConfig().cpu_threads  # 0: the simulator's default
+
+
+@pytest.mark.sim
+def test_cli_prints_no_bar_into_a_pipe_and_threads_do_not_change_a_demo(tmp_path):
+    """`pasta demos` with stdout and stderr piped: the result line and no progress bar (rich would print its
+    last state once); a demo made with 1 simulator thread is byte for byte the one made with 2 (threads= is
+    no part of the pipeline's settings, pasta.pipeline.run.IGNORED). Separate processes: Taichi takes its
+    thread count once per process."""
+    import subprocess
+    import sys
+
+    base = [sys.executable, "-m", "pasta", "demos", "skill=push", "num=1", "workers=0", "n_particles=1500",
+            "obs_points=300"]
+    for threads in (1, 2):
+        done = subprocess.run([*base, f"out={tmp_path / str(threads)}", f"threads={threads}"], capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        assert not any(c in done.stdout + done.stderr for c in "━╸╺%"), (done.stdout, done.stderr)  # rich's bar
+        ours = [line for line in done.stdout.splitlines() if not line.startswith("[Taichi]")]
+        assert len(ours) == 1 and ours[0].startswith("demos push: 1 generated"), done.stdout
+    assert (tmp_path / "1" / "push" / "demo_00000.npz").read_bytes() == \
+        (tmp_path / "2" / "push" / "demo_00000.npz").read_bytes()

@@ -88,3 +88,30 @@ def test_deadline_is_derived_from_the_task_or_given(tmp_path, monkeypatch):
     assert episode_deadline(build_session("push", ["method=oracle", "task.n_particles=10000"])) == 600 + 2 * 360
     # a planning method: PLAN_S per horizon step, every skill planned with at its own step limit (lift's 160)
     assert episode_deadline(build_session("push")) == 600 + PLAN_S + (10 + 170) + (160 + 50) * 2
+
+
+def test_episode_lines_end_with_an_eta(tmp_path, monkeypatch, capsys):
+    import re
+
+    from pasta.commands import eval as eval_cmd
+    from pasta.tasks import get_task
+
+    task = get_task("push")
+    task.make_sim = lambda: None
+    monkeypatch.setattr("pasta.execute.session.build_session", lambda *a, **k: _FakeSession(task))
+    _FakeSession.broken = set()
+    try:
+        assert eval_cmd.run(argparse.Namespace(overrides=["task=push", "num=3", f"out={tmp_path}"])) == 0
+    finally:
+        _FakeSession.broken = {1001}
+    lines = [line for line in capsys.readouterr().err.splitlines() if line.startswith("[")]
+    assert [bool(re.search(r", ETA \d+s$", line)) for line in lines] == [True, True, False], lines  # none after the last
+
+
+def test_eta_is_the_mean_episode_time_times_the_episodes_left_over_the_workers():
+    from pasta.commands._progress import duration, eta
+
+    assert eta([100.0, 300.0], 2, workers=2) == "ETA 3m20s"
+    assert eta([60.0], 3) == "ETA 3m00s"
+    assert eta([], 5) == "" and eta([10.0], 0) == ""
+    assert (duration(0.4), duration(45.4), duration(200), duration(7500)) == ("0s", "45s", "3m20s", "2h05m")

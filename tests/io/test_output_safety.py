@@ -32,12 +32,12 @@ DEMOS = ["demos", "skill=push", "num=1", "workers=0", "n_particles=1500", "obs_p
 def test_run_and_replay_export_never_write_through_a_link(tmp_path, capsys):
     first, out = tmp_path / "first", tmp_path / "out"
     assert main([*RUN, f"log={first / 'run.mcap'}", f"summary={first / 'summary.png'}"]) == 0
-    assert main(["replay", str(first / "run.mcap"), "--export", str(first / "frames"), "--max-frames", "2"]) == 0
+    assert main(["replay", str(first / "run.mcap"), f"export={first / 'frames'}", "max_frames=2"]) == 0
     names = written_files(first)
     assert {"run.mcap", "summary.png"} <= set(names) and any(n.startswith("frames/") for n in names)
     planted = plant_links(out, names, tmp_path / "victims")
     assert main([*RUN, f"log={out / 'run.mcap'}", f"summary={out / 'summary.png'}"]) == 0
-    assert main(["replay", str(out / "run.mcap"), "--export", str(out / "frames"), "--max-frames", "2"]) == 0
+    assert main(["replay", str(out / "run.mcap"), f"export={out / 'frames'}", "max_frames=2"]) == 0
     assert_untouched(planted)
     assert_regular(out, names)
     assert RunReader(out / "run.mcap").status == "complete"

@@ -1,4 +1,4 @@
-"""pasta replay: timeline, --topics, --export, exit codes, demo export."""
+"""pasta replay: timeline, topics=, export=, exit codes, demo export."""
 
 import argparse
 
@@ -24,7 +24,7 @@ def test_timeline(sample_run, capsys):
 
 
 def test_timeline_topic_filter(sample_run, capsys):
-    assert replay.run(_parse([str(sample_run["path"]), "--topics", "/metrics,/log"])) == 0
+    assert replay.run(_parse([str(sample_run["path"]), "topics=/metrics,/log"])) == 0
     out = capsys.readouterr().out
     assert "final metrics" in out and "knife stopped early" in out
     assert "cut -> push" not in out and "/dough" not in out
@@ -32,7 +32,7 @@ def test_timeline_topic_filter(sample_run, capsys):
 
 def test_export_pngs_and_gif(sample_run, tmp_path, capsys):
     out_dir = tmp_path / "frames"
-    assert replay.run(_parse([str(sample_run["path"]), "--export", str(out_dir), "--every", "3"])) == 0
+    assert replay.run(_parse([str(sample_run["path"]), f"export={out_dir}", "every=3"])) == 0
     pngs = sorted(out_dir.glob("dough_*.png"))
     assert len(pngs) == 4  # 12 clouds, every 3rd
     gif = out_dir / "dough.gif"
@@ -45,7 +45,7 @@ def test_export_pngs_and_gif(sample_run, tmp_path, capsys):
         assert im.format == "PNG" and im.size[0] > 100
     # explicit topics: coloured clouds too
     out2 = tmp_path / "f2"
-    assert replay.run(_parse([str(sample_run["path"]), "--export", str(out2), "--topics", "/colored", "/entities", "--max-frames", "2"])) == 0
+    assert replay.run(_parse([str(sample_run["path"]), f"export={out2}", "topics=/colored,/entities", "max_frames=2"])) == 0
     assert len(list(out2.glob("colored_*.png"))) == 2 and (out2 / "entities.gif").exists()
 
 

@@ -15,6 +15,7 @@ from pasta.io import replay
 @dataclass
 class FakeConfig:
     gain: float = 1.0
+    cpu_threads: int = 2
 
     @classmethod
     def from_dict(cls, d):  # as SimConfig.from_dict, which replay uses
@@ -112,7 +113,22 @@ def test_verify_ok_and_fail(fake_sim, tmp_path, capsys):
     _episode(bad, tamper=1e-3)
     assert _run([str(bad), "--verify"]) == replay.EXIT_VERIFY_FAILED
     assert "FAILED" in capsys.readouterr().out
-    assert _run([str(bad), "--verify", "--tolerance", "1e-2"]) == 0
+    assert _run([str(bad), "tolerance=1e-2", "--verify"]) == 0
+
+
+def test_verify_threads_set_the_simulators_cpu_threads(fake_sim, tmp_path, monkeypatch):
+    seen = []
+
+    def sim(cfg, **kwargs):
+        seen.append(cfg.cpu_threads)
+        return FakeSim(cfg, **kwargs)
+
+    monkeypatch.setattr(pasta.sim, "Simulator", sim)
+    p = tmp_path / "r.mcap"
+    _episode(p)
+    assert _run([str(p), "threads=3", "--verify"]) == 0
+    assert _run([str(p), "--verify"]) == 0
+    assert seen == [3, 2]  # threads=0: the logged run's own
 
 
 def test_verify_against_last_dough_cloud(fake_sim, tmp_path, capsys):

@@ -63,7 +63,7 @@ def test_replay_verify_reproduces_knife_episode(tmp_path, capsys):
 
     moved = np.abs(final.x - SimState.load(io.BytesIO(x0)).x).max()
     assert moved > 1e-4  # the knife really deformed the dough
-    assert _run([str(path), "--verify", "--tolerance", "1e-5"]) == 0
+    assert _run([str(path), "tolerance=1e-5", "--verify"]) == 0
     out = capsys.readouterr().out
     assert "7 env steps re-simulated" in out and "OK" in out
 

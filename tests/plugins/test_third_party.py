@@ -83,7 +83,7 @@ def test_third_party_skill_and_planner_appear_and_disappear(pinch_dist, monkeypa
 
 def test_third_party_plugin_listed_by_cli_subprocess(pinch_dist):
     env = {"PYTHONPATH": str(pinch_dist), "PATH": "/usr/bin:/bin"}
-    out = subprocess.run([sys.executable, "-m", "pasta", "plugins", "--kind", "skill"], capture_output=True, text=True, env=env, check=True)
+    out = subprocess.run([sys.executable, "-m", "pasta", "plugins", "kind=skill"], capture_output=True, text=True, env=env, check=True)
     assert "squash" in out.stdout and "pinch-pkg" in out.stdout
 
 
