@@ -41,7 +41,7 @@ LAYERS: dict[int, tuple[str, ...]] = {
     6: ("pasta.nn", "pasta.policy"),  # policy: runtime only (networks, LearnedPolicy, reset pose at inference)
     7: ("pasta.demos", "pasta.train"),  # train: every trainer
     8: ("pasta.execute", "pasta.testing", "plugins/*/*"),  # testing: what a plugin author tests a plugin with
-    9: ("pasta.pipeline",),  # orchestrates demos -> train stages
+    9: ("pasta.pipeline", "pasta.envs"),  # orchestrates demos -> train stages; the tasks as Gymnasium envs
     10: ("pasta.commands",),  # with pasta.cli and pasta.__main__ (MEMBERS)
     11: ("pasta.api",),  # the Python surface: what `import pasta` exposes (loaded lazily by pasta/__init__)
 }

@@ -1,0 +1,92 @@
+"""The tasks as Gymnasium environments (issue 43): every registered task passes Gymnasium's own checker,
+a seed reproduces an episode bit for bit, the rewards add up to the task's normalised improvement, the picture
+has the shape Gymnasium expects, and a vector env over processes steps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+gymnasium = pytest.importorskip("gymnasium")  # in the dev extra: installed by make test and CI
+
+from pasta.envs import TaskEnv, env_id, register_envs  # noqa: E402
+from pasta.plugins import get_plugins  # noqa: E402
+
+pytestmark = pytest.mark.sim
+SEEDS = (1000,)  # the first test config of each task: generated once into the task cache
+
+
+@pytest.mark.parametrize("task", get_plugins().tasks.names())
+def test_every_registered_task_is_an_env_that_passes_check_env(task):
+    from gymnasium.utils.env_checker import check_env
+
+    assert env_id(task) in register_envs()
+    env = gymnasium.make(env_id(task), seeds=SEEDS)
+    check_env(env.unwrapped, skip_render_check=True)
+    obs, info = env.reset(seed=0)
+    assert obs["dough"].shape == obs["goal"].shape == (512, 3) and obs["tools"].shape[1] == 7
+    assert env.action_space.shape == (len(env.unwrapped.action_layout),) and info["instance"] == 1000
+    env.close()
+
+
+def _episode(seed: int, steps: int = 12):
+    env = TaskEnv("push", seeds=SEEDS)
+    obs, _ = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    out, rewards, info = [obs], [], {}
+    for _ in range(steps):
+        obs, reward, terminated, truncated, info = env.step(rng.uniform(-1, 1, env.action_space.shape))
+        out.append(obs)
+        rewards.append(reward)
+    return out, rewards, info
+
+
+def test_a_seed_reproduces_an_episode_bit_for_bit_and_rewards_add_up_to_the_improvement():
+    a, ra, info = _episode(3)
+    b, rb, _ = _episode(3)
+    assert ra == rb and all(all(np.array_equal(x[k], y[k]) for k in x) for x, y in zip(a, b))
+    assert sum(ra) == pytest.approx(info["improvement"], abs=1e-9)
+    c, _, _ = _episode(4, steps=0)
+    assert not np.array_equal(a[0]["dough"], c[0]["dough"])  # another seed draws other observed particles
+
+
+def test_rgb_array_render_shows_dough_and_goal():
+    env = TaskEnv("crs", seeds=SEEDS, render_mode="rgb_array")
+    env.reset(seed=0)
+    img = env.render()
+    assert img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3 and min(img.shape[:2]) >= 200
+    navy = (np.abs(img.astype(int) - [31, 58, 100]).sum(2) < 40).sum()  # the dough's colour
+    assert navy > 500 and (img < 250).any(2).mean() < 0.5  # drawn, on a mostly white picture
+    assert TaskEnv("crs", seeds=SEEDS).render() is None  # no render mode: nothing
+
+
+def _make_push():
+    import gymnasium
+
+    import pasta.envs  # noqa: F401 - registers the ids in the spawned process
+
+    return gymnasium.make("pasta/push-v0", seeds=SEEDS)
+
+
+def test_a_vector_env_over_processes_steps():
+    # spawn: a forked child of a process whose Taichi runtime is up deadlocks
+    envs = gymnasium.vector.AsyncVectorEnv([_make_push] * 2, context="spawn")
+    try:
+        obs, _ = envs.reset(seed=0)
+        assert obs["dough"].shape == (2, 512, 3)
+        obs, rewards, terminated, truncated, _ = envs.step(envs.action_space.sample())
+        assert rewards.shape == (2,) and np.isfinite(rewards).all()
+    finally:
+        envs.close()
+
+
+def test_bad_arguments_are_named():
+    from pasta.core.errors import ConfigError, PluginNotFoundError
+
+    with pytest.raises(ConfigError, match="render_mode='human'"):
+        TaskEnv("push", render_mode="human")
+    with pytest.raises(PluginNotFoundError, match="unknown task 'psuh'"):
+        TaskEnv("psuh")
+    env = TaskEnv("push", seeds=SEEDS)
+    with pytest.raises(gymnasium.error.ResetNeeded):
+        env.step(np.zeros(env.action_space.shape))
