@@ -90,3 +90,26 @@ def test_bad_arguments_are_named():
     env = TaskEnv("push", seeds=SEEDS)
     with pytest.raises(gymnasium.error.ResetNeeded):
         env.step(np.zeros(env.action_space.shape))
+
+
+def test_sac_point_trains_on_an_env_and_its_policy_acts(tmp_path):
+    """A tiny budget of scripts/train_sac.py's agent: SAC updates run and the policy returns actions in the
+    action space (not a score)."""
+    import importlib.util
+    from pathlib import Path
+
+    import torch
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / "train_sac.py"
+    spec = importlib.util.spec_from_file_location("train_sac", path)
+    train_sac = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(train_sac)
+    torch.manual_seed(0)
+    env = gymnasium.make("pasta/push-v0", seeds=SEEDS, points=64)
+    model = train_sac.make_agent(env, buffer_size=200, learning_starts=10, batch_size=8)
+    before = [p.detach().clone() for p in model.policy.actor.parameters()]
+    model.learn(30)
+    assert any(not torch.equal(a, b) for a, b in zip(before, model.policy.actor.parameters()))  # it trained
+    obs, _ = env.reset(seed=1)
+    action, _ = model.predict(obs, deterministic=True)
+    assert env.action_space.contains(action.astype(np.float32))
