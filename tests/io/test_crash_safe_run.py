@@ -1,22 +1,18 @@
 """`pasta run log=FILE` under failure (issue 21): a run that raises after its first plan step leaves FILE with
-status "failed"; a killed run leaves FILE.partial with every finished step, read by `pasta replay --recover`."""
+status "failed"; a killed run leaves FILE.partial with every finished step, read by `pasta replay --recover` and
+re-simulated by `--verify`."""
 
 from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
-import time
 
 import pytest
 
 from pasta.cli import main
+from pasta_runs import RUN, start_run, wait_for_steps
 from pasta.core.errors import SimulationError
 from pasta.io import RunReader, partial_path
-
-# shipped weights, heuristic controllers, a short optimisation: ~10 s of CPU
-RUN = ["run", "task=crs", "seed=1000", "planner.iterations=10", "execute.idle_steps=2", "execute.retries=0"]
 
 
 @pytest.mark.sim
@@ -41,19 +37,15 @@ def test_pasta_run_that_raises_after_a_step_logs_the_failure(tmp_path, monkeypat
 
 
 @pytest.mark.sim
-def test_killed_pasta_run_leaves_a_partial_file_with_its_finished_steps(tmp_path, capsys):
+def test_killed_pasta_run_keeps_its_finished_steps_for_recover_and_verify(tmp_path, capsys):
+    """SIGKILL after the second finished step: FILE.partial keeps both (the log is flushed at step boundaries),
+    `pasta replay --recover` reads them and `--verify` re-simulates them exactly (issue 41)."""
     target = tmp_path / "run.mcap"
     partial = partial_path(target)
-    proc = subprocess.Popen([sys.executable, "-m", "pasta", *RUN, f"log={target}"],
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = start_run(target)
     try:
-        deadline = time.monotonic() + 180
-        steps = 0
-        while steps < 1 and time.monotonic() < deadline and proc.poll() is None:
-            time.sleep(0.5)
-            if partial.exists():  # read while it is written: recover keeps what is complete so far
-                steps = RunReader(partial, recover=True).count("/step")
-        assert steps >= 1, "the run did not log a finished step"
+        steps = wait_for_steps(partial, proc, 2)
+        assert steps >= 2, "the run did not log two finished steps"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=10)
     finally:
@@ -62,8 +54,11 @@ def test_killed_pasta_run_leaves_a_partial_file_with_its_finished_steps(tmp_path
             proc.wait()
     assert not target.exists() and partial.exists()
     r = RunReader(partial, recover=True)
-    assert r.status == "truncated" and r.count("/step") >= 1 and r.count("/plan") == 1
+    assert r.status == "truncated" and r.count("/step") >= 2 and r.count("/plan") == 1 and r.count("/actions") > 0
     assert r.metadata()["seed"] == "1000" and r.config() is not None and "initial_state.npz" in r.attachment_names()
     assert main(["replay", str(partial), "--recover"]) == 0
     out = capsys.readouterr().out
     assert "RECOVERED (truncated" in out and "step 0 cut" in out
+    assert main(["replay", str(partial), "--recover", "--verify"]) == 0
+    out = capsys.readouterr().out
+    assert "env steps re-simulated" in out and ": OK" in out

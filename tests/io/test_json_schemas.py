@@ -9,9 +9,8 @@ import json
 import pytest
 
 from pasta.cli import main
+from pasta_runs import RUN
 
-# shipped weights, heuristic controllers, a short optimisation: ~10 s of CPU
-RUN = ["run", "task=crs", "seed=1000", "planner.iterations=10", "execute.idle_steps=2", "execute.retries=0"]
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
-"""Outputs of the simulator commands (issue 41): never written through a link, one writer per output, and a
-run killed after its second step keeps both steps for ``pasta replay --recover --verify``.
+"""Outputs of the simulator commands (issue 41): never written through a link, and one writer per output (a
+killed run's log: tests/io/test_crash_safe_run.py).
 
 The link tests run a command once into a fresh folder to learn every name it writes, plant a link at each
 (and at the temporary names beside it) to a file outside ``out=``, run it again and check that nothing
@@ -8,21 +8,16 @@ outside changed (tests/output_links.py).
 
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
 
 import pytest
 
 from output_links import assert_regular, assert_untouched, plant_links, written_files
+from pasta_runs import RUN, start_run
 from pasta.cli import main
 from pasta.io import RunReader, partial_path
 
-# shipped weights, heuristic controllers, a short optimisation: ~10 s of CPU
-RUN = ["run", "task=crs", "seed=1000", "planner.iterations=10", "execute.idle_steps=2", "execute.retries=0"]
 # a short planner and episode: what is written is tested, not how good it is
 EVAL = ["eval", "task=push", "num=1", "planner.num_samples=32", "planner.iterations=20", "skill.push.max_steps=25"]
 DEMOS = ["demos", "skill=push", "num=1", "workers=0", "n_particles=1500", "obs_points=300"]
@@ -78,35 +73,17 @@ def test_demos_never_write_through_a_link(tmp_path):
     assert_regular(out, names)
 
 
-def _start_run(log: Path, seed: int) -> subprocess.Popen:
-    args = [a for a in RUN if not a.startswith("seed=")] + [f"seed={seed}", f"log={log}"]
-    return subprocess.Popen([sys.executable, "-m", "pasta", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
-
-
-def _wait_for_steps(partial: Path, proc: subprocess.Popen, steps: int, timeout: float = 240.0) -> int:
-    deadline, seen = time.monotonic() + timeout, 0
-    while seen < steps and time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.3)
-        if partial.exists():  # read while it is written: recover keeps what is complete so far
-            try:
-                seen = RunReader(partial, recover=True).count("/step")
-            except Exception:  # noqa: BLE001 - the header may not be complete yet
-                seen = 0
-    return seen
-
-
 @pytest.mark.sim
 def test_a_second_run_on_the_same_log_is_refused_at_start_and_the_first_stays_intact(tmp_path):
     log = tmp_path / "conc.mcap"
-    first = _start_run(log, 1000)
+    first = start_run(log, 1000)
     try:
         deadline = time.monotonic() + 120
         while not partial_path(log).exists() and time.monotonic() < deadline and first.poll() is None:
             time.sleep(0.2)
         assert partial_path(log).exists(), "the first run did not start its log"
         t0 = time.monotonic()
-        second = _start_run(log, 1001)
+        second = start_run(log, 1001)
         out, err = second.communicate(timeout=120)
         assert second.returncode == 2
         lines = err.strip().splitlines()
@@ -122,26 +99,3 @@ def test_a_second_run_on_the_same_log_is_refused_at_start_and_the_first_stays_in
     reader = RunReader(log)
     assert reader.status == "complete" and reader.metadata()["seed"] == "1000"
     assert not partial_path(log).exists()
-
-
-@pytest.mark.sim
-def test_a_run_killed_after_its_second_step_keeps_both_for_recover_and_verify(tmp_path, capsys):
-    log = tmp_path / "killed.mcap"
-    partial = partial_path(log)
-    proc = _start_run(log, 1000)
-    try:
-        steps = _wait_for_steps(partial, proc, 2)
-        assert steps >= 2, "the run did not log two finished steps"
-        os.kill(proc.pid, signal.SIGKILL)
-        proc.wait(timeout=10)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert not log.exists() and partial.exists()
-    reader = RunReader(partial, recover=True)
-    assert reader.status == "truncated" and reader.count("/step") >= 2 and reader.count("/actions") > 0
-    assert main(["replay", str(partial), "--recover", "--verify"]) == 0
-    out = capsys.readouterr().out
-    assert "env steps re-simulated" in out and ": OK" in out
-    assert reader.metadata()["seed"] == "1000"
