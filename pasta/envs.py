@@ -83,10 +83,9 @@ class TaskEnv(gymnasium.Env):
         self.seeds = tuple(int(s) for s in seeds) if seeds else tuple(range(TRAIN_SEED_BASE, TRAIN_SEED_BASE
                                                                          + check_int(instances, "instances", low=1)))
         self.render_mode = render_mode
-        skills = [self.task.skill(name) for name in dict.fromkeys(self.task.skeleton)]
-        self.tools = tuple(dict.fromkeys(skill.tool for skill in skills))
-        self.max_steps = int(sum(int(getattr(skill, "max_steps", 100)) for skill in
-                                 (self.task.skill(name) for name in self.task.skeleton)))
+        chain = [self.task.skill(name) for name in self.task.skeleton]  # built once per name by the task
+        self.tools = tuple(dict.fromkeys(skill.tool for skill in chain))
+        self.max_steps = int(sum(int(getattr(skill, "max_steps", 100)) for skill in chain))
         self._sim: Any = None
         self._specs: dict[str, Any] = {}
         self.action_layout: list[tuple[str, str]] = []  # (tool, channel) per action component
@@ -113,12 +112,12 @@ class TaskEnv(gymnasium.Env):
         self._instance = inst = self.task.instance(instance_seed)
         sim = self._simulator()
         sim.set_state(inst.init)
-        observed = sim.observe().dough
-        self._dough_idx = self._subset(len(observed))
+        seen = sim.observe()
+        self._dough_idx = self._subset(len(seen.dough))
         self._goal = np.asarray(inst.goal, np.float32)[self._subset(len(inst.goal))]
-        self._e0 = self._emd(observed)
+        self._e0 = self._emd(seen.dough)
         self._emd_now, self._steps = self._e0, 0
-        return self._observation(observed, sim), self._info()
+        return self._observation(seen), self._info()
 
     def step(self, action: Any) -> tuple[dict, float, bool, bool, dict]:
         from pasta.sim import SimulationDiverged
@@ -138,14 +137,12 @@ class TaskEnv(gymnasium.Env):
             sim.step(per_tool)
         except SimulationDiverged as exc:  # the state is invalid: the episode ends, without reward
             sim.set_state(self._instance.init)
-            obs = self._observation(sim.observe().dough, sim)
-            return obs, 0.0, True, False, {**self._info(), "diverged": str(exc)}
-        observed = sim.observe().dough
-        before, self._emd_now = self._emd_now, self._emd(observed)
+            return self._observation(sim.observe()), 0.0, True, False, {**self._info(), "diverged": str(exc)}
+        seen = sim.observe()
+        before, self._emd_now = self._emd_now, self._emd(seen.dough)
         reward = float((before - self._emd_now) / self._e0)
         info = self._info()
-        return (self._observation(observed, sim), reward, bool(info["success"]), self._steps >= self.max_steps,
-                info)
+        return self._observation(seen), reward, bool(info["success"]), self._steps >= self.max_steps, info
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array" or self._instance is None:
@@ -170,10 +167,11 @@ class TaskEnv(gymnasium.Env):
         cfg = self.task.config
         return float(emd(observed, self._instance.goal, n=cfg.emd_points, seed=cfg.emd_seed))
 
-    def _observation(self, observed: np.ndarray, sim: Any) -> dict[str, np.ndarray]:
-        poses = sim.observe().tool_poses
+    def _observation(self, seen: Any) -> dict[str, np.ndarray]:
+        """The Dict observation of one simulator observation (its dough subset, the goal, the tool poses)."""
+        poses = seen.tool_poses
         tools = np.stack([np.asarray(poses[t], np.float32) for t in self.tools]) if self.tools else np.zeros((0, 7))
-        return {"dough": np.clip(observed[self._dough_idx], 0.0, 1.0).astype(np.float32),
+        return {"dough": np.clip(seen.dough[self._dough_idx], 0.0, 1.0).astype(np.float32),
                 "goal": np.clip(self._goal, 0.0, 1.0).astype(np.float32),
                 "tools": np.clip(tools, -1.0, 1.0).astype(np.float32)}
 
