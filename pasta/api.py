@@ -83,12 +83,8 @@ def plan(session: Session, obs: np.ndarray, goal: np.ndarray, *, seed: int = 0, 
         InputError: a malformed cloud, or pieces outside the models' training boxes.
         UnreachableGoalError: the goal holds far more or less dough than ``obs`` (``check.volume_ratio``).
     """
-    from pasta.execute.episode import perceive_and_plan
-
-    return perceive_and_plan(_cloud_arg(obs, "obs"), _cloud_arg(goal, "goal"), planner=session.planner,
-                             planner_name=session.planner_name, skills=session.skills, encoder=session.encoder,
-                             cost=session.cost, horizon=int(horizon or session.horizon), seed=seed,
-                             skeleton=skeleton, perception=session.perception, check=session.check)
+    return session.plan_clouds(_cloud_arg(obs, "obs"), _cloud_arg(goal, "goal"), seed=seed, horizon=horizon,
+                               skeleton=skeleton)
 
 
 def execute_plan(session: Session, sim: Any, plan: Plan, goal: np.ndarray, *, logger: RunLogger | None = None

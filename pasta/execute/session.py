@@ -145,15 +145,23 @@ class Session:
         ``perception.*``)."""
         import dataclasses
 
-        from pasta.execute.episode import perceive_and_plan
-
         inst = self.task.instance(seed)
         sim = sim if sim is not None else self.task.make_sim()
         sim.set_state(inst.init)
-        return perceive_and_plan(sim.observe().dough, inst.goal, planner=self.planner, planner_name=self.planner_name,
-                                 skills=self.skills, encoder=self.encoder, cost=self.cost, horizon=self.horizon,
-                                 seed=seed if planning_seed is None else planning_seed, skeleton=self.skeleton(inst),
-                                 perception=dataclasses.replace(self.perception, **perception), check=self.check)
+        return self.plan_clouds(sim.observe().dough, inst.goal, seed=seed if planning_seed is None else planning_seed,
+                                skeleton=self.skeleton(inst),
+                                perception=dataclasses.replace(self.perception, **perception))
+
+    def plan_clouds(self, obs: Any, goal: Any, *, seed: int = 0, horizon: int | None = None,
+                    skeleton: Sequence[str] | None = None, perception: Any = None) -> Any:
+        """Perceive ``obs (P, 3)`` and ``goal (G, 3)`` and plan with this session's models, planner and checks
+        (:func:`~pasta.execute.episode.perceive_and_plan`); ``horizon`` (default the session's), ``skeleton``
+        and ``perception`` (default the session's ``perception.*``) as given."""
+        from pasta.execute.episode import perceive_and_plan
+
+        return perceive_and_plan(obs, goal, planner=self.planner, planner_name=self.planner_name, skills=self.skills,
+                                 encoder=self.encoder, cost=self.cost, horizon=int(horizon or self.horizon), seed=seed,
+                                 skeleton=skeleton, perception=perception or self.perception, check=self.check)
 
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:
         """Plan and execute the task instance ``seed`` (generated and cached on first use) and score it."""
