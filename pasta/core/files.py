@@ -19,6 +19,7 @@ kernel releases it when the holder exits, however it exits, so a killed run neve
 from __future__ import annotations
 
 import errno
+import functools
 import json
 import os
 import tempfile
@@ -235,7 +236,10 @@ def _read_holder(fd: int) -> str:
     return f" (pid {pid})" if pid.isdigit() else ""
 
 
+@functools.cache
 def _umask() -> int:
+    """The process's umask, read once: reading it means setting it, and a file another thread created in
+    between would get the temporary mask."""
     mask = os.umask(0)
     os.umask(mask)
     return mask
