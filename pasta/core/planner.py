@@ -33,6 +33,10 @@ class PlanningProblem:
         horizon: number of skill steps ``H``.
         seed: random seed; the same seed must give the same plan.
         skeleton: optional fixed skill sequence (names) of length ``H``.
+        candidates: optional skill sequences to search instead of every sequence of length ``H`` (a warm
+            start: a closed loop re-plans from the remaining steps of its plan and their one-step
+            extensions); they may differ in length, and those that cannot reach the goal's entity count are
+            dropped. At most one of ``skeleton`` and ``candidates``.
         fixed: pairs ``(i, j)``: observed entity ``i`` already is goal entity ``j``, unchanged (e.g.
             :func:`pasta.core.matching.unchanged_pairs` on the two clouds' entities). The shared search
             never attends such an entity and matches it to its goal entity in the set cost; each index
@@ -48,6 +52,7 @@ class PlanningProblem:
     seed: int = 0
     skeleton: tuple[str, ...] | None = None
     fixed: tuple[tuple[int, int], ...] = ()
+    candidates: tuple[tuple[str, ...], ...] = ()
 
     def __post_init__(self) -> None:
         dim = self.encoder.latent_dim
@@ -73,14 +78,37 @@ class PlanningProblem:
                 raise InputError(f"skeleton uses unknown skills {unknown}; the problem's skills are {names}")
             if len(self.skeleton) != self.horizon:
                 raise InputError(f"skeleton has {len(self.skeleton)} steps but the horizon is {self.horizon}")
+        self.candidates = tuple(tuple(str(n) for n in seq) for seq in self.candidates)
+        if self.candidates:
+            if self.skeleton is not None:
+                raise InputError("give a skeleton or candidate sequences, not both")
+            unknown = sorted({n for seq in self.candidates for n in seq} - set(names))
+            if unknown or not all(self.candidates):
+                raise InputError(f"candidate sequences must be non-empty and use the problem's skills {names}; "
+                                 f"unknown: {unknown}")
+
+    @property
+    def sequences_given(self) -> bool:
+        """The caller chose the sequences (a skeleton or candidates): planners search those, no others."""
+        return self.skeleton is not None or bool(self.candidates)
 
     @property
     def skill_map(self) -> dict[str, Skill]:
         return {s.name: s for s in self.skills}
 
     def skeletons(self) -> list[tuple[str, ...]]:
-        """The skill sequences to search: the given skeleton, or every feasible one (see :func:`enumerate_skeletons`)."""
+        """The skill sequences to search: the given skeleton, the candidates that reach the goal's entity
+        count, or every feasible one (see :func:`enumerate_skeletons`)."""
         specs = [s.spec for s in self.skills]
+        if self.candidates:
+            by_name = {s.name: s for s in specs}
+            kept = [seq for seq in dict.fromkeys(self.candidates)
+                    if _reachable([by_name[n] for n in seq], len(self.obs), len(self.goal))]
+            if not kept:
+                raise CardinalityError(f"none of the {len(self.candidates)} candidate sequences turns {len(self.obs)} "
+                                       f"observed entities into {len(self.goal)} goal entities; "
+                                       + _cardinalities(specs))
+            return kept
         if self.skeleton is not None:
             check_skeleton(self.skeleton, specs, len(self.obs), len(self.goal))
             return [self.skeleton]

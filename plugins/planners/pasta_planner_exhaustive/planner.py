@@ -20,7 +20,7 @@ class ExhaustivePlanner(LatentPlanner):
 
     def sequences(self, problem: PlanningProblem) -> list[tuple[str, ...]]:
         max_h = int(getattr(self.cfg, "max_horizon", 0) or 0)
-        if max_h <= 0 or problem.skeleton is not None:
+        if max_h <= 0 or problem.sequences_given:
             return problem.skeletons()
         specs = [s.spec for s in problem.skills]
         out: list[tuple[str, ...]] = []

@@ -56,14 +56,14 @@ class PrefixBeamPlanner(LatentPlanner):
         t0 = time.perf_counter()
         timings = {"enumerate": 0.0, "beam": 0.0, "sample": 0.0, "optimise": 0.0}
         stages: list[dict]
-        if problem.skeleton is not None:
-            sequences, stages = problem.skeletons(), []  # the given skeleton (cardinality checked)
+        if problem.sequences_given:
+            sequences, stages = problem.skeletons(), []  # the given skeleton or candidates (cardinality checked)
         else:
             sequences, stages, prefix_timings = self._beam(problem, gen)
             timings["beam"] = prefix_timings
         results: list[SearchResult] = []
         polish: list[dict] = []
-        if int(cfg.polish) > 0 and problem.skeleton is None:
+        if int(cfg.polish) > 0 and not problem.sequences_given:
             results += self._polish(problem, sequences, gen, polish)
         else:
             results.append(search(problem, sequences, cfg, gen, method=self.method))
