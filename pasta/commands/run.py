@@ -131,8 +131,15 @@ def run(args: argparse.Namespace) -> int:
         for flag in out.plan.info.get("flags", []):
             print(f"warning: {flag['kind']}: {flag['message']}", file=sys.stderr)
     if out.result is not None:
-        for s in out.result.steps:
+        res = out.result
+        for s in res.steps:
             print(f"  {s.describe()}")
+            if s.step == 0 and res.disturbance:
+                print(f"  disturbance ({res.disturbance['kind']}): {res.disturbance['description']}")
+            for d in res.decisions:
+                if d["after_step"] == s.step:
+                    new = f": {' -> '.join(d['new'])}" if d["decision"] == "replanned" else ""
+                    print(f"  closed loop: {d['decision']}{new} ({d['reason']}; {d['seconds']:.1f} s)")
         if out.result.diverged:
             print(f"simulation diverged: {out.result.diverged}", file=sys.stderr)
     verdict = "success" if out.success else "failure"

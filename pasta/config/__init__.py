@@ -148,6 +148,10 @@ def validate_config(cfg: DictConfig, *, plugins: Any = None) -> None:
     check_device(cfg.device, "device")
     check_threads(cfg.threads, "threads")
     check_choice(cfg.method, "method", METHODS)
+    if cfg.get("disturb"):
+        from pasta.sim.disturb import DISTURBANCES
+
+        check_choice(cfg.disturb, "disturb", DISTURBANCES)
     check_horizon(cfg.horizon)
     steps = split_names(cfg.skeleton, "skeleton")
     if steps and steps != ["task"] and cfg.horizon is not None and len(steps) != int(cfg.horizon):

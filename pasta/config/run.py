@@ -30,6 +30,7 @@ METHODS = ("pasta", "flat", "oracle")
 CONTROLLERS = ("heuristic", "learned")
 #: ``execute.goal``: how a step's goal pieces are made (:mod:`pasta.execute.goals`)
 GOAL_MODES = ("observed", "decoded")
+LOOPS = ("open", "closed")
 
 
 @dataclass
@@ -138,6 +139,11 @@ class ExecuteConfig:
         overrun: a learned policy stopped only by its own step cap runs on for at most this many env steps
             while each brings its piece closer than ever (crs_twice's first cut carries its piece further
             than any demonstration did: learned crs_twice 20 % -> 35 % on validation).
+        loop: ``open``: execute the plan as planned (PASTA); ``closed``: after each step, test whether the rest
+            of the plan fits what is observed (:func:`pasta.execute.loop.plan_fit`) and re-plan the remaining
+            steps when it does not (docs/policies.md, "Closed loop").
+        fit_distance: the closed loop's tolerance: a piece further than this (metres) from the centroid the
+            plan expects makes the plan not fit.
     """
 
     controller: str = "heuristic"
@@ -147,11 +153,15 @@ class ExecuteConfig:
     regress_rise: float = 0.5
     regress_near: float = 0.001
     overrun: int = 40
+    loop: str = "open"
+    fit_distance: float = 0.03
 
     def __post_init__(self) -> None:
         from pasta.config.validate import check_choice, check_int, check_number
 
         check_choice(self.controller, "execute.controller", CONTROLLERS)
+        check_choice(self.loop, "execute.loop", LOOPS)
+        check_number(self.fit_distance, "execute.fit_distance", low=0.0, low_open=True, high=1.0)
         check_choice(self.goal, "execute.goal", GOAL_MODES)
         check_int(self.idle_steps, "execute.idle_steps", low=0)
         check_int(self.retries, "execute.retries", low=0)
@@ -177,6 +187,8 @@ class RunConfig:
         skills: comma-separated skills to plan with; empty: every registered skill with trained weights.
         skeleton: a fixed skill sequence (``cut,push,roll``), ``task`` (the task's ground-truth chain), or
             empty (the planner searches).
+        disturb: a disturbance after the first executed step (:data:`pasta.sim.disturb.DISTURBANCES`: shift,
+            split, merge, lump, noise), drawn from ``seed``; empty: none.
     """
 
     seed: int = 0
@@ -187,6 +199,7 @@ class RunConfig:
     horizon: int | None = None
     skills: str = ""
     skeleton: str = ""
+    disturb: str = ""
     planner: Any = None
     encoder: Any = None
     cost_model: Any = None

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import nullcontext
 from dataclasses import dataclass, field
 from typing import Any
@@ -58,8 +58,9 @@ class Perceived:
 
 
 def perceive(points: np.ndarray, encoder: Any, perception: PerceptionConfig | None = None, *,
-             seed: int = 0) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, Any]:
-    """Entities of ``points (P, 3)`` and their latents.
+             seed: int = 0, labels: np.ndarray | None = None) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, Any]:
+    """Entities of ``points (P, 3)`` and their latents; ``labels (P,)``: the entity of every point as the caller
+    already knows it (the closed loop's joined pieces) instead of a decomposition.
 
     Returns ``(entities, each (num_points, 3); labels (Q,) of the decomposed cloud; that cloud (Q, 3);
     latents (K, D) torch)``. A cloud above ``perception.max_points`` is voxel-downsampled first. An encoder
@@ -71,14 +72,16 @@ def perceive(points: np.ndarray, encoder: Any, perception: PerceptionConfig | No
 
     perception = perception or PerceptionConfig()
     pts = np.asarray(points, np.float32)
-    if len(pts) > perception.max_points:
+    if labels is not None and len(labels) != len(pts):
+        raise InputError(f"labels has {len(labels)} entries for {len(pts)} points")
+    if len(pts) > perception.max_points and labels is None:
         pts = voxel_downsample(pts, perception.max_points)[0]
     rng = np.random.default_rng(seed)
     if getattr(encoder, "scope", "entity") == "scene":  # Flat 3D: the whole cloud is the one entity
         labels = np.zeros(len(pts), np.int64)
         entities = [pts[rng.choice(len(pts), perception.num_points, replace=len(pts) < perception.num_points)]]
     else:
-        labels = decompose_labels(pts, **perception.decompose_kwargs())
+        labels = decompose_labels(pts, **perception.decompose_kwargs()) if labels is None else np.asarray(labels)
         entities = [resample(pts[labels == k], perception.num_points, rng) for k in range(int(labels.max()) + 1)]
     with torch.no_grad():
         latents = encoder.encode(torch.as_tensor(np.stack(entities))).detach().cpu().float()
@@ -109,7 +112,8 @@ def check_volumes(clouds: dict[str, np.ndarray], labels: dict[str, np.ndarray] |
 def perceive_and_plan(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills: Sequence[Any], encoder: Any,
                       cost: Any, horizon: int, seed: int = 0, skeleton: Sequence[str] | None = None,
                       perception: PerceptionConfig | None = None, check: CheckConfig | None = None,
-                      planner_name: str = "", encoder_name: str = "") -> Perceived:
+                      planner_name: str = "", encoder_name: str = "",
+                      candidates: Sequence[Sequence[str]] = (), obs_labels: np.ndarray | None = None) -> Perceived:
     """Perceive ``obs (P, 3)`` and ``goal (G, 3)``, plan ``horizon`` steps with ``planner`` and check the plan.
 
     Observed entities within ``perception.unchanged_threshold`` (Chamfer) of a goal entity are that goal
@@ -135,7 +139,8 @@ def perceive_and_plan(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills
     entities, labels, clouds, latents = {}, {}, {}, {}
     box_flags: list[dict[str, str]] = []
     for name, points in (("obs", obs), ("goal", goal)):
-        entities[name], labels[name], clouds[name], u = perceive(points, encoder, perception, seed=seed)
+        entities[name], labels[name], clouds[name], u = perceive(points, encoder, perception, seed=seed,
+                                                                 labels=obs_labels if name == "obs" else None)
         who = f" (encoder {encoder_name!r})" if encoder_name else ""
         latents[name] = check_latents(u, f"the {len(entities[name])} encoded {name} entities{who}", dim=encoder.latent_dim)
         if not scene:
@@ -145,7 +150,7 @@ def perceive_and_plan(obs: np.ndarray, goal: np.ndarray, *, planner: Any, skills
                                              threshold=perception.unchanged_threshold)
     problem = PlanningProblem(obs=latents["obs"], goal=latents["goal"], skills=list(skills), encoder=encoder,
                               cost=cost, horizon=horizon, seed=seed, skeleton=tuple(skeleton) if skeleton else None,
-                              fixed=tuple(fixed))
+                              fixed=tuple(fixed), candidates=tuple(tuple(c) for c in candidates))
     plan = _plan(planner, problem, planner_name)
     report = confidence(plan, encoder, latents, check, skills)
     flags = box_flags + report["flags"]
@@ -289,16 +294,69 @@ def run_episode(sim: Any, goal: np.ndarray, *, planner: Any, skills: Sequence[An
                 horizon: int, seed: int = 0, skeleton: Sequence[str] | None = None,
                 cfg: ExecuteConfig | None = None, perception: PerceptionConfig | None = None,
                 check: CheckConfig | None = None, planner_name: str = "", emd_points: int = 500, emd_seed: int = 0,
-                logger: Any = None) -> Episode:
+                logger: Any = None, disturb: str = "") -> Episode:
     """Plan from ``sim``'s current observation to ``goal (G, 3)`` (:func:`perceive_and_plan`) and execute.
-    ``logger`` (a :class:`pasta.io.RunLogger`) records the planner's progress on ``/planner/progress`` too."""
+    ``logger`` (a :class:`pasta.io.RunLogger`) records the planner's progress on ``/planner/progress`` too.
+    ``disturb``: a disturbance after the first step (:func:`pasta.execute.execute_plan`); with
+    ``cfg.loop="closed"`` a plan that no longer fits is re-planned (:func:`replanner`)."""
+    cfg = cfg or ExecuteConfig()
+    plan_args = {"planner": planner, "skills": skills, "encoder": encoder, "cost": cost, "perception": perception,
+                 "check": check, "planner_name": planner_name}
     with progress.listening(_progress_logger(logger, sim)) if logger is not None else nullcontext():
-        perceived = perceive_and_plan(sim.observe().dough, goal, planner=planner, skills=skills, encoder=encoder,
-                                      cost=cost, horizon=horizon, seed=seed, skeleton=skeleton, perception=perception,
-                                      check=check, planner_name=planner_name)
+        perceived = perceive_and_plan(sim.observe().dough, goal, horizon=horizon, seed=seed, skeleton=skeleton,
+                                      **plan_args)
+    replan = replanner(goal, seed=seed, **plan_args) if cfg.loop == "closed" else None
     result = execute_plan(sim, perceived.plan, skills={s.name: s for s in skills}, encoder=encoder, goal=goal,
-                          cfg=cfg, perception=perception, emd_points=emd_points, emd_seed=emd_seed, logger=logger)
+                          cfg=cfg, perception=perception, emd_points=emd_points, emd_seed=emd_seed, logger=logger,
+                          disturb=disturb, seed=seed, replan=replan)
     return Episode(perceived, result)
+
+
+def replanner(goal: np.ndarray, *, seed: int = 0,
+              **plan_args: Any) -> Callable[[np.ndarray, Plan, set[int], np.ndarray | None], Plan]:
+    """The closed loop's re-planner: ``(observed dough, plan, executed steps, its entity labels or None) ->
+    plan`` of the remaining steps, warm-started from ``plan``, from what is observed now, in two stages:
+
+    1. the remaining skill sequence alone; kept when it reaches the goal's piece count and its predicted final
+       cost is at most :data:`REPLAN_COST_RATIO` times the current plan's (the disturbance changed where the
+       steps go, not which steps are needed);
+    2. otherwise every sequence with one more skill inserted (:func:`pasta.execute.loop.warm_start_sequences`),
+       and the better of the two stages by the planner's score.
+
+    ``plan_args``: the planner, skills, models and checks of :func:`perceive_and_plan`."""
+    from pasta.core.errors import CardinalityError
+    from pasta.execute.loop import warm_start_sequences
+
+    names = [s.name for s in plan_args["skills"]]
+
+    def replan(dough: np.ndarray, plan: Plan, executed: set[int], labels: np.ndarray | None = None) -> Plan:
+        remaining = tuple(plan.steps[j].skill for j in range(plan.horizon) if j not in executed)
+
+        def search(candidates: Sequence[Sequence[str]]) -> Plan:
+            return perceive_and_plan(dough, goal, horizon=len(remaining), seed=seed, obs_labels=labels,
+                                     candidates=candidates, **plan_args).plan
+
+        same = None
+        try:
+            same = search([remaining])
+        except CardinalityError:
+            pass
+        if same is not None and same.final_cost <= REPLAN_COST_RATIO * max(float(plan.final_cost), 1e-9):
+            return same
+        try:
+            longer = search(warm_start_sequences(remaining, names)[1:])
+        except CardinalityError:
+            if same is None:
+                raise
+            return same
+        return longer if same is None or longer.score > same.score else same
+
+    return replan
+
+
+#: a re-plan keeps the remaining skill sequence when its predicted final cost is at most this many times the
+#: current plan's (:func:`replanner`)
+REPLAN_COST_RATIO = 2.0
 
 
 def _progress_logger(logger: Any, sim: Any) -> Any:

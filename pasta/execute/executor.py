@@ -21,7 +21,7 @@ docs/logging.md (:class:`pasta.execute.runlog.ExecutionLog`).
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -35,6 +35,7 @@ from pasta.core.skill import Controller, Skill
 from pasta.core.step import Stop
 from pasta.config.run import ExecuteConfig, PerceptionConfig
 from pasta.execute.goals import step_goal
+from pasta.execute.loop import join_labels
 from pasta.execute.runlog import ExecutionLog
 from pasta.execute.schedule import attend, next_step
 
@@ -48,6 +49,7 @@ class StepInfo:
         ended: why the step ended (a :class:`~pasta.core.Stop` value; ``at_goal``: it was skipped).
         attempts: how many times its skill ran (0: skipped; 2: retried once).
         plan_step: index of the executed step in its plan (differs from ``step`` when the order changed).
+        plan: which plan it belongs to (0: the first; ``k``: the closed loop's ``k``-th re-plan).
     """
 
     step: int
@@ -63,6 +65,7 @@ class StepInfo:
     normalized_improvement: float
     wall_s: float
     plan_step: int = -1
+    plan: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -71,7 +74,10 @@ class StepInfo:
 
     def describe(self) -> str:
         """One line for the command line: skill, pieces, env steps, why it ended, improvement after it."""
-        moved = f" (plan step {self.plan_step + 1})" if self.plan_step not in (-1, self.step) else ""
+        if self.plan:
+            moved = f" (re-plan {self.plan}, step {self.plan_step + 1})"
+        else:
+            moved = f" (plan step {self.plan_step + 1})" if self.plan_step not in (-1, self.step) else ""
         tries = f", {self.attempts} attempts" if self.attempts > 1 else ""
         return (f"executed {self.step + 1}. {self.skill:<6}{moved} on observed pieces {list(self.attended)}: "
                 f"{self.env_steps} steps ({Stop(self.ended).describe}{tries}), "
@@ -101,7 +107,10 @@ class ExecutionResult:
     """The outcome of :func:`execute_plan`: the score, per-step info and the final observed dough ``(P, 3)``.
 
     ``snapshots`` has one :class:`StepSnapshot` per entry of ``steps``; ``start_tools`` and ``end_tools`` are
-    the tools (:class:`pasta.io.ToolPrimitive`) before the first step and after the last."""
+    the tools (:class:`pasta.io.ToolPrimitive`) before the first step and after the last. ``plans``: the plan
+    and every re-plan of a closed loop; ``decisions``: the closed loop's verdict after each step (kept or
+    re-planned, why, seconds); ``disturbance``: what the disturbance changed (``Disturbance.summary``, with
+    ``applied``), or why it could not be applied (``applied`` false)."""
 
     normalized_improvement: float
     emd_initial: float
@@ -113,6 +122,8 @@ class ExecutionResult:
     snapshots: list[StepSnapshot] = field(default_factory=list)
     start_tools: list[Any] = field(default_factory=list)
     end_tools: list[Any] = field(default_factory=list)
+    decisions: list[dict[str, Any]] = field(default_factory=list)
+    disturbance: dict[str, Any] | None = None
 
 
 def step_monitor(cfg: ExecuteConfig, perception: PerceptionConfig) -> Any:
@@ -151,6 +162,9 @@ def execute_plan(
     emd_points: int = 500,
     emd_seed: int = 0,
     logger: Any = None,
+    disturb: str = "",
+    seed: int = 0,
+    replan: Callable[[np.ndarray, Plan, set[int], np.ndarray], Plan] | None = None,
 ) -> ExecutionResult:
     """Execute ``plan`` in ``sim`` (a :class:`pasta.sim.Simulator` with the scene loaded) and score it.
 
@@ -161,9 +175,15 @@ def execute_plan(
         cfg: execution settings; ``perception``: decomposition settings (the planner's).
         emd_points, emd_seed: the task's EMD sample (:class:`pasta.tasks.TaskConfig`).
         logger: a :class:`pasta.io.RunLogger` (or ``None``): the execution is logged into it.
+        disturb: a disturbance (:data:`pasta.sim.disturb.DISTURBANCES`) applied after the first executed step,
+            drawn from ``seed``; ``""``: none.
+        replan: the closed loop (``execute.loop=closed``): ``(observed dough (P, 3), plan, executed plan steps,
+            entity labels (P,)) -> new plan`` of the remaining steps, called after a step when the plan no longer
+            fits the observation (:func:`pasta.execute.loop.plan_fit`); ``None``: open loop.
 
     Returns:
-        :class:`ExecutionResult` with the final normalised improvement and per-step info.
+        :class:`ExecutionResult` with the final normalised improvement and per-step info. Scores use the
+        simulator's true dough, not what a noisy camera (``disturb=noise``) shows the controllers.
     """
     from pasta.sim import SimulationDiverged
     from pasta.tasks.step import run_skill
@@ -181,11 +201,15 @@ def execute_plan(
         log.start(obs, goal, plan)
     scene_scope = getattr(encoder, "scope", "entity") == "scene"
 
-    def entity_labels(points: np.ndarray) -> np.ndarray:
-        """``(P,)`` entity of every point; Flat 3D (a scene-scope encoder) sees the whole dough as one."""
+    joined: list[np.ndarray] = []  # groups of particle ids the closed loop counts as one piece (loop.join_labels)
+
+    def entity_labels(points: np.ndarray, index: np.ndarray | None = None) -> np.ndarray:
+        """``(P,)`` entity of every point; Flat 3D (a scene-scope encoder) sees the whole dough as one. With the
+        points' particle ids ``index``, the pieces of each joined group count as one."""
         if scene_scope:
             return np.zeros(len(points), np.int64)
-        return decompose_labels(points, min_points=perception.min_points)
+        labels = decompose_labels(points, min_points=perception.min_points)
+        return join_labels(points, labels, index, joined) if joined and index is not None else labels
 
     goal_labels = entity_labels(goal) if cfg.goal == "observed" else None  # entity label of every goal point
     monitor = step_monitor(cfg, perception)
@@ -194,14 +218,21 @@ def execute_plan(
     start_tools = _tools(sim)
     diverged = None
     executed: set[int] = set()  # plan steps already run
+    plans: list[Plan] = [plan]
+    decisions: list[dict[str, Any]] = []
+    disturbance, missed = None, None
+    aimed: dict[tuple[int, int], np.ndarray] = {}  # (plan step, output) -> where the controller aimed it
+    view = sim  # what the controllers and the closed loop observe (a noisy camera after disturb=noise)
+    h = 0
+    steps_cap = plan.horizon + 2 * MAX_REPLANS  # re-plans may add a step each
 
-    for h in range(plan.horizon):
+    while len(executed) < plan.horizon and h < steps_cap:
         t0 = time.perf_counter()
-        obs = sim.observe()
-        labels = entity_labels(obs.dough)
+        obs = view.observe()
+        labels = entity_labels(obs.dough, obs.dough_index)
 
-        def prepare(j: int, labels: np.ndarray = labels,
-                    dough: np.ndarray = obs.dough) -> tuple[tuple[int, ...], np.ndarray, list[np.ndarray]]:
+        def prepare(j: int, labels: np.ndarray = labels, dough: np.ndarray = obs.dough, plan: Plan = plan,
+                    executed: set[int] = executed) -> tuple[tuple[int, ...], np.ndarray, list[np.ndarray]]:
             """Plan step ``j``: the attended observed entities, their point indices and the controller's goal."""
             step = plan.steps[j]
             before = plan.initial if j == 0 else plan.steps[j - 1].state
@@ -215,6 +246,7 @@ def execute_plan(
         step = plan.steps[h_plan]
         skill = skills[step.skill]
         goal_points = np.concatenate(subgoal, 0)
+        aimed.update({(h_plan, j): np.asarray(piece, np.float64).mean(0) for j, piece in enumerate(subgoal)})
         if log:
             log.step_start(h, obs, labels, subgoal, step, attended)
         controller = _controller(skill, cfg.controller)
@@ -223,9 +255,11 @@ def execute_plan(
                                    watch=watch, at_goal=getattr(skill, "at_goal", None)) if len(idx) else None
         steps_run, attempts, res = 0, 0, None
         expected = int(labels.max()) + 1 - len(attended) + skill.spec.n_out  # pieces after a successful step
+        tracked = obs.dough_index[idx]  # the attended particles, by identity
         while ended is None or attempts:  # skipped (at its goal), or run until done or out of retries
             if attempts:  # re-attend: the pieces that hold most of the tracked particles, as observed now
-                now = entity_labels(sim.observe().dough)
+                seen = view.observe()
+                now = entity_labels(seen.dough, seen.dough_index)
                 if len(idx):
                     ids = np.unique(now[idx], return_counts=True)
                     keep = ids[0][ids[1] >= 0.1 * len(idx)]
@@ -233,7 +267,7 @@ def execute_plan(
                 controller = _controller(skill, cfg.controller)
             start_step = sim.step_count
             try:
-                res = run_skill(sim, skill, controller, idx, goal_points, monitor=monitor,
+                res = run_skill(view, skill, controller, idx, goal_points, monitor=monitor,
                                 idle_steps=cfg.idle_steps, record=log is not None)
             except SimulationDiverged as exc:  # a diverged simulation ends the episode, scored as is
                 diverged, ended = str(exc), Stop.DIVERGED
@@ -241,7 +275,8 @@ def execute_plan(
             steps_run, ended, attempts = steps_run + res.steps, res.ended, attempts + 1
             if log:
                 log.skill_run(start_step, skill, res, cfg.idle_steps)
-            pieces = int(entity_labels(sim.observe().dough).max()) + 1
+            after = view.observe()
+            pieces = int(entity_labels(after.dough, after.dough_index).max()) + 1
             if not monitor.should_retry(pieces, expected, ended):
                 break
             why = ended.describe if ended is Stop.LIMIT else f"{pieces} pieces observed, {expected} expected"
@@ -253,10 +288,11 @@ def execute_plan(
                 log.retry(h, step.skill, attempts + 1, why)
         if attempts == 0 and ended is Stop.AT_GOAL and log:
             log.note("info", f"step {h}: {step.skill} {Stop.AT_GOAL.describe}")
-        final = obs.dough if diverged else sim.observe().dough
+        final = obs.dough if diverged else sim.observe().dough  # the true dough: scores never see camera noise
         e = emd(final, goal, n=emd_points, seed=emd_seed)
         info = StepInfo(h, step.skill, step.inputs, attended, int(labels.max()) + 1, len(idx), steps_run,
-                        str(Stop(ended)), attempts, e, normalized_improvement(emd0, e), time.perf_counter() - t0, h_plan)
+                        str(Stop(ended)), attempts, e, normalized_improvement(emd0, e), time.perf_counter() - t0, h_plan,
+                        len(plans) - 1)
         infos.append(info)
         if res is not None:
             snapshots.append(StepSnapshot(np.array(final, np.float32), _tools(sim, res.end_poses, res.end_apertures),
@@ -268,11 +304,109 @@ def execute_plan(
         if diverged:
             break
         executed.add(h_plan)
+        h += 1
+        if disturb and h == 1:
+            try:
+                disturbance = _disturb(sim, disturb, tracked, entity_labels, seed)
+            except InputError as exc:  # e.g. merge in a scene of one piece: said, and the run goes on
+                missed = {"kind": disturb, "applied": False, "description": f"not applied: {exc}"}
+                if log:
+                    log.note("warning", f"disturbance ({disturb}) {missed['description']}")
+            else:
+                view = disturbance.apply_to(sim)
+                if log:
+                    log.disturbance(disturbance)
+        if replan is not None and len(executed) < plan.horizon:
+            plan, executed = _closed_loop(view, plan, executed, replan, entity_labels, encoder.z_dim, cfg, h,
+                                          len(plans) - 1, decisions, log, aimed,
+                                          lambda name: bool(getattr(skills[name], "keeps_position", False)), joined)
+            if plan is not plans[-1]:
+                plans.append(plan)
+                aimed = {}
     last = infos[-1] if infos else None
     final_dough = obs.dough if diverged else sim.observe().dough
     emd_t = last.emd if last else emd0
-    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, diverged, [plan],
-                             snapshots, start_tools, _tools(sim) if not diverged else [])
+    result = ExecutionResult(normalized_improvement(emd0, emd_t), emd0, emd_t, infos, final_dough, diverged, plans,
+                             snapshots, start_tools, _tools(sim) if not diverged else [], decisions,
+                             disturbance.summary() if disturbance is not None else missed)
     if log:
         log.finish(result)
     return result
+
+
+MAX_REPLANS = 3  # a closed loop re-plans at most this many times per episode (each may add one step)
+
+
+def _disturb(sim: Any, kind: str, tracked: np.ndarray, entity_labels: Callable[[np.ndarray], np.ndarray],
+             seed: int) -> Any:
+    """The seeded disturbance of ``kind`` after the first step: the pieces that hold its ``tracked`` particles
+    are the ones it produced."""
+    from pasta.sim.disturb import make_disturbance, particle_labels
+
+    seen = sim.observe()
+    x = sim.particles()
+    pieces = particle_labels(x, seen.dough, entity_labels(seen.dough))
+    produced = sorted(set(np.unique(pieces[tracked]).tolist())) if len(tracked) else []
+    return make_disturbance(kind, x, pieces, produced, step=sim.step_count, observed=len(seen.dough), seed=seed)
+
+
+def _closed_loop(view: Any, plan: Plan, executed: set[int],
+                 replan: Callable[[np.ndarray, Plan, set[int], np.ndarray], Plan],
+                 entity_labels: Callable[..., np.ndarray], z_dim: int, cfg: ExecuteConfig, h: int,
+                 replans: int, decisions: list[dict[str, Any]], log: Any,
+                 aimed: dict[tuple[int, int], np.ndarray], keeps_position: Callable[[str], bool],
+                 joined: list[np.ndarray]) -> tuple[Plan, set[int]]:
+    """After step ``h``: keep ``plan`` when it fits the observation, else re-plan its remaining steps; when no
+    sequence can bring the observed pieces to the plan's count, join each extra piece to its nearest one
+    (appended to ``joined``) and test again. Appends the decision (kept / re-planned, why, seconds) to
+    ``decisions`` and logs it (:mod:`pasta.execute.loop`)."""
+    from pasta.core.errors import CardinalityError
+    from pasta.execute.loop import extra_pieces, plan_fit
+
+    t0 = time.perf_counter()
+    seen = view.observe()
+    labels = entity_labels(seen.dough, seen.dough_index)
+    fit = plan_fit(plan, executed, seen.dough, labels, z_dim, float(cfg.fit_distance), aimed, keeps_position)
+    decision: dict[str, Any] = {"after_step": h - 1, "decision": "kept", "reason": fit.reason,
+                                "distance_m": fit.distance if np.isfinite(fit.distance) else None,
+                                "observed": fit.observed, "expected": fit.expected}
+    new_plan, new_executed = plan, executed
+    for _ in range(2):  # a re-plan; after joining extra pieces, the test and (if needed) a re-plan once more
+        if fit.fits:
+            break
+        if replans >= MAX_REPLANS:
+            decision["reason"] += f"; no re-plans left ({MAX_REPLANS} per episode)"
+            break
+        try:
+            new_plan = replan(seen.dough, plan, executed, labels)
+        except CardinalityError as exc:
+            pairs = extra_pieces(plan, executed, seen.dough, labels, z_dim, aimed) if not decision.get("joined") else []
+            if not pairs:
+                decision["reason"] += f"; re-plan failed ({type(exc).__name__}: {exc})"
+                break
+            for extra, nearest in pairs:  # one group per pair, merged with any group it touches
+                ids = seen.dough_index[np.isin(labels, [extra, nearest])]
+                touching = [g for g in joined if np.isin(g, ids).any()]
+                for g in touching:
+                    joined.remove(g)
+                joined.append(np.unique(np.concatenate([ids, *touching])))
+            decision["joined"] = [[int(a), int(b)] for a, b in pairs]
+            labels = entity_labels(seen.dough, seen.dough_index)
+            fit = plan_fit(plan, executed, seen.dough, labels, z_dim, float(cfg.fit_distance), aimed, keeps_position)
+            decision["reason"] += (f"; no skill sequence reaches the plan's count: observed pieces "
+                                   f"{', '.join(f'{a} and {b}' for a, b in pairs)} count as one from now on; "
+                                   f"then: {fit.reason}")
+            continue
+        except Exception as exc:  # noqa: BLE001 - a failed re-plan keeps the plan; the run goes on
+            decision["reason"] += f"; re-plan failed ({type(exc).__name__}: {exc})"
+            break
+        new_executed = set()
+        remaining = [plan.steps[j].skill for j in range(plan.horizon) if j not in executed]
+        decision.update(decision="replanned", remaining=remaining, new=[s.skill for s in new_plan.steps],
+                        cost=float(new_plan.final_cost))
+        break
+    decision["seconds"] = round(time.perf_counter() - t0, 3)
+    decisions.append(decision)
+    if log:
+        log.decision(decision, new_plan if new_plan is not plan else None)
+    return new_plan, new_executed

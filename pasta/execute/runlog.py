@@ -126,6 +126,33 @@ class ExecutionLog:
         self.log.point_cloud("/dough", t, self.sim.observe().dough)
         self.tools(t)
 
+    def disturbance(self, disturbance: Any) -> None:
+        """The disturbance: its arrays as an attachment that ``pasta replay --verify`` applies at its env step
+        (an ``/actions`` message names it), and a line saying what changed."""
+        from pasta.io import ACTIONS
+        from pasta.io.schemas import ACTION_SCHEMA
+
+        t = self.t(self.sim.step_count)
+        name = f"disturbance_{disturbance.step}.npz"
+        self.log.attach(name, disturbance.to_npz(), "application/x-npz", t_ns=t)
+        self.log.json(ACTIONS, t, {"step": int(self.sim.step_count), "disturb": name}, schema=ACTION_SCHEMA)
+        self.log.message(t, "warning", f"disturbance ({disturbance.kind}): {disturbance.description}")
+        self.log.point_cloud("/dough", t, self.sim.observe().dough)
+        self.tools(t)
+
+    def decision(self, decision: dict[str, Any], plan: Plan | None) -> None:
+        """The closed loop's verdict after a step (kept or re-planned, and why); a re-plan is logged on /plan."""
+        t = self.t(self.sim.step_count)
+        from pasta.io.schemas import DECISION_SCHEMA
+
+        self.log.json("/loop", t, decision, schema=DECISION_SCHEMA)
+        level = "info" if decision["decision"] == "kept" else "warning"
+        extra = f" -> {' -> '.join(decision['new'])}" if decision["decision"] == "replanned" else ""
+        self.log.message(t, level, f"closed loop after step {decision['after_step']}: {decision['decision']} "
+                                   f"({decision['reason']}){extra}")
+        if plan is not None:
+            self.plan(plan)
+
     def step_end(self, info: StepInfo) -> None:
         self.log.step_result(self.t(self.sim.step_count), {**info.to_dict(), "score": info.normalized_improvement})
         self.log.flush()  # a killed run loses at most the step in progress
@@ -139,4 +166,6 @@ class ExecutionLog:
         self.log.metrics(t, {"normalized_improvement": result.normalized_improvement, "emd_initial": result.emd_initial,
                              "emd_final": result.emd_final, "steps": len(result.steps),
                              "env_steps": int(sum(s.env_steps for s in result.steps)),
-                             "diverged": result.diverged is not None})
+                             "diverged": result.diverged is not None,
+                             "replans": sum(d["decision"] == "replanned" for d in result.decisions),
+                             "disturbance": result.disturbance["kind"] if result.disturbance else None})

@@ -57,6 +57,10 @@ class EpisodeOutcome:
         if self.result is not None:
             out["steps"] = [s.to_dict() for s in self.result.steps]
             out["diverged"] = self.result.diverged
+            if self.result.decisions:
+                out["loop"] = self.result.decisions
+            if self.result.disturbance:
+                out["disturbance"] = self.result.disturbance
         return {**out, **self.info}
 
 
@@ -180,7 +184,7 @@ class Session:
                               encoder=self.encoder, cost=self.cost, horizon=self.horizon, seed=seed,
                               skeleton=self.skeleton(inst), cfg=self.exe, perception=self.perception,
                               check=self.check, emd_points=self.task.config.emd_points,
-                              emd_seed=self.task.config.emd_seed, logger=logger)
+                              emd_seed=self.task.config.emd_seed, logger=logger, disturb=str(self.cfg.get("disturb", "")))
         score = self.task.score(episode.result.final_dough, inst)
         plan_s = float(episode.plan.timings.get("total", 0.0))
         exec_s = float(sum(s.wall_s for s in episode.result.steps))

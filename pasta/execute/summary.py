@@ -203,12 +203,16 @@ def summary_steps(plan: Any, result: Any, encoder: Any, num_points: int = 400
         plan: the executed :class:`pasta.core.Plan` (``None``: no plan, e.g. the oracle; nothing to show).
         result: its :class:`pasta.execute.ExecutionResult` (``None``: the plan only).
         encoder: decodes each step's sub-goal latents into ``num_points`` points per piece.
-    """
-    from pasta.core.step import Stop
-    from pasta.io.views import base_name
 
+    A closed loop that re-planned (``result.plans`` holds more than one plan) gets one panel per executed
+    step, each with the sub-goal of the plan it belonged to, then the last plan's steps that did not run; the
+    first step's panel says when a disturbance followed it.
+    """
     if plan is None:
         return [], None, [], []
+    plans = list(getattr(result, "plans", []) or []) if result is not None else []
+    if len(plans) > 1:  # a closed loop re-planned: one panel per executed step, then the last plan's rest
+        return _replanned_steps(plans, result, encoder, num_points)
     subgoals = [(f"{h + 1}. {step.skill}  (plan f={step.feasibility:.2f})", encoder.decode_clouds(step.subgoal, num_points))
                 for h, step in enumerate(plan.steps)]
     if result is None:
@@ -221,18 +225,61 @@ def summary_steps(plan: Any, result: Any, encoder: Any, num_points: int = 400
         gain, before = info.normalized_improvement - before, info.normalized_improvement
         if k >= len(snapshots) or not 0 <= j < len(executed):
             continue
-        snap = snapshots[k]
-        ended = Stop(info.ended)
-        note = {Stop.AT_GOAL: "skipped: at its goal", Stop.DIVERGED: "diverged"}.get(ended, f"{info.env_steps} steps")
-        if ended in (Stop.LIMIT, Stop.CAP, Stop.REGRESSED):
-            note += {Stop.LIMIT: " (step limit)", Stop.CAP: " (policy cap)", Stop.REGRESSED: " (regressed)"}[ended]
-        if info.attempts > 1:
-            note += f", {info.attempts} runs"
+        note = _note(info, result)
         if info.step != j:
             note += f", ran {info.step + 1}."
-        colour = next((tuple(t.color) for t in snap.tools if base_name(t.name) == snap.tool), "0.3")
-        executed[j] = ExecutedStep(snap.dough, info.normalized_improvement, gain, note, snap.tools,
-                                   snap.path if len(snap.path) else None, colour)
+        executed[j] = _executed_step(snapshots[k], info, gain, note)
+    return subgoals, executed, list(getattr(result, "start_tools", [])), list(getattr(result, "end_tools", []))
+
+
+def _note(info: Any, result: Any) -> str:
+    """The panel's note for an executed step: env steps and why it ended, runs, and the disturbance after the
+    first step."""
+    from pasta.core.step import Stop
+
+    ended = Stop(info.ended)
+    note = {Stop.AT_GOAL: "skipped: at its goal", Stop.DIVERGED: "diverged"}.get(ended, f"{info.env_steps} steps")
+    if ended in (Stop.LIMIT, Stop.CAP, Stop.REGRESSED):
+        note += {Stop.LIMIT: " (step limit)", Stop.CAP: " (policy cap)", Stop.REGRESSED: " (regressed)"}[ended]
+    if info.attempts > 1:
+        note += f", {info.attempts} runs"
+    disturbance = getattr(result, "disturbance", None)
+    if info.step == 0 and disturbance and disturbance.get("applied", True):
+        note += f"\nthen disturbed: {disturbance['kind']}"
+    return note
+
+
+def _executed_step(snap: Any, info: Any, gain: float, note: str) -> ExecutedStep:
+    from pasta.io.views import base_name
+
+    colour = next((tuple(t.color) for t in snap.tools if base_name(t.name) == snap.tool), "0.3")
+    return ExecutedStep(snap.dough, info.normalized_improvement, gain, note, snap.tools,
+                        snap.path if len(snap.path) else None, colour)
+
+
+def _replanned_steps(plans: list[Any], result: Any, encoder: Any, num_points: int
+                     ) -> tuple[list[tuple[str, list[Any]]], list[ExecutedStep | None], list[Any], list[Any]]:
+    """Panels of a closed-loop run: each executed step with the sub-goal of the plan it belonged to (its title
+    says which re-plan), then the steps of the last plan that did not run."""
+    subgoals: list[tuple[str, list[Any]]] = []
+    executed: list[ExecutedStep | None] = []
+    snapshots = list(getattr(result, "snapshots", []) or [])
+    before, ran = 0.0, set()
+    for k, info in enumerate(result.steps):
+        step = plans[info.plan].steps[info.plan_step]
+        tag = f", re-plan {info.plan}" if info.plan else ""
+        subgoals.append((f"{k + 1}. {step.skill}  (plan f={step.feasibility:.2f}{tag})",
+                         encoder.decode_clouds(step.subgoal, num_points)))
+        gain, before = info.normalized_improvement - before, info.normalized_improvement
+        executed.append(_executed_step(snapshots[k], info, gain, _note(info, result)) if k < len(snapshots) else None)
+        if info.plan == len(plans) - 1:
+            ran.add(info.plan_step)
+    last = plans[-1]
+    for j, step in enumerate(last.steps):
+        if j not in ran:
+            subgoals.append((f"{len(subgoals) + 1}. {step.skill}  (plan f={step.feasibility:.2f}, re-plan "
+                             f"{len(plans) - 1})", encoder.decode_clouds(step.subgoal, num_points)))
+            executed.append(None)
     return subgoals, executed, list(getattr(result, "start_tools", [])), list(getattr(result, "end_tools", []))
 
 

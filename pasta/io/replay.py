@@ -419,6 +419,10 @@ def verify_run(reader: RunReader, tolerance: float, out: TextIO | None = None, *
             sim.set_tool_pose(name, position, **pose)
         elif "park_tool" in msg:
             sim.park_tool(msg["park_tool"])
+        elif "disturb" in msg:  # the logged disturbance, applied to the re-simulated state
+            from pasta.sim.disturb import Disturbance
+
+            Disturbance.from_npz(reader.attachment(str(msg["disturb"]))).apply_to(sim)
         elif "actions" in msg:
             sim.step({k: np.asarray(v, dtype=np.float64) for k, v in msg["actions"].items()})
             n_steps += 1

@@ -449,8 +449,9 @@ PLAN_SCHEMA: dict[str, Any] = {
 ACTION_SCHEMA: dict[str, Any] = {
     "title": "pasta.Action",
     "description": (
-        "One env step's tool action ({step, tool, action}) or a tool teleport "
-        "({step, set_tool_pose: {name, position, yaw}} / {step, park_tool})."
+        "One env step's tool action ({step, tool, action}), a tool teleport "
+        "({step, set_tool_pose: {name, position, yaw}} / {step, park_tool}), or a disturbance of the dough "
+        "({step, disturb: the attachment that holds it})."
     ),
     "type": "object",
     "properties": {
@@ -464,7 +465,27 @@ ACTION_SCHEMA: dict[str, Any] = {
             "required": ["name", "position"],
         },
         "park_tool": _STR,
+        "disturb": _STR,
     },
+}
+
+DECISION_SCHEMA: dict[str, Any] = {
+    "title": "pasta.LoopDecision",
+    "description": "The closed loop's verdict after an executed step: the plan kept or re-planned, and why.",
+    "type": "object",
+    "properties": {
+        "after_step": _INT,
+        "decision": {"type": "string", "enum": ["kept", "replanned"]},
+        "reason": _STR,
+        "distance_m": {"type": ["number", "null"]},
+        "observed": _INT,
+        "expected": _INT,
+        "remaining": {"type": "array", "items": _STR},
+        "new": {"type": "array", "items": _STR},
+        "cost": _NUM,
+        "seconds": _NUM,
+    },
+    "required": ["after_step", "decision", "reason"],
 }
 
 METRICS_SCHEMA: dict[str, Any] = {
