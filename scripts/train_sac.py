@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import time
 from pathlib import Path
 
 import gymnasium
@@ -43,23 +44,45 @@ class PointFeatures(BaseFeaturesExtractor):
 
 
 class Curve(BaseCallback):
-    """The normalised improvement at the end of every training episode, by env step."""
+    """The normalised improvement at the end of every training episode, by env step; a progress line (rate, ETA,
+    recent improvement) and OUT/curve.csv rewritten every ``every`` steps, so a long run can be watched and a
+    killed one keeps its curve."""
 
-    def __init__(self) -> None:
+    def __init__(self, total: int = 0, out: Path | None = None, every: int = 1000) -> None:
         super().__init__()
         self.rows: list[tuple[int, float]] = []
+        self.total, self.out, self.every = total, out, every
+        self.start = time.monotonic()
 
     def _on_step(self) -> bool:
         for done, info in zip(self.locals["dones"], self.locals["infos"]):
             if done:
                 self.rows.append((self.num_timesteps, float(info["improvement"])))
+        if self.every and self.num_timesteps % self.every == 0:
+            rate = self.num_timesteps / max(time.monotonic() - self.start, 1e-9)
+            recent = [value for _, value in self.rows[-10:]]
+            eta = (self.total - self.num_timesteps) / rate if self.total else 0.0
+            print(f"step {self.num_timesteps}/{self.total}  {rate:.1f} steps/s  ETA {eta / 60:.0f} min  "
+                  f"episodes {len(self.rows)}  last-10 improvement "
+                  f"{np.mean(recent) if recent else float('nan'):.3f}", flush=True)
+            if self.out is not None:
+                write_curve(self.rows, self.out / "curve.csv")
         return True
 
 
+def write_curve(rows: list[tuple[int, float]], path: Path) -> None:
+    from pasta.core.files import write_text
+
+    lines = ["step,improvement"] + [f"{step},{value:.6f}" for step, value in rows]
+    write_text(path, "\n".join(lines) + "\n")
+
+
 def make_agent(env: gymnasium.Env, *, seed: int = 0, buffer_size: int = 100_000, learning_starts: int = 1000,
-               batch_size: int = 256) -> SAC:
+               batch_size: int = 128, train_freq: int = 4) -> SAC:
+    """SB3's SAC with the point features; one gradient step per ``train_freq`` env steps (the update of a
+    point-cloud batch costs about as much as a few simulator steps on a CPU)."""
     return SAC("MultiInputPolicy", env, seed=seed, buffer_size=buffer_size, learning_starts=learning_starts,
-               batch_size=batch_size, policy_kwargs={"features_extractor_class": PointFeatures,
+               batch_size=batch_size, train_freq=train_freq, gradient_steps=1, policy_kwargs={"features_extractor_class": PointFeatures,
                                                      "net_arch": [256, 256]}, verbose=0)
 
 
@@ -87,22 +110,27 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=50_000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--points", type=int, default=256, help="observed dough and goal points (env points=)")
+    parser.add_argument("--batch-size", type=int, default=128)
+    parser.add_argument("--train-freq", type=int, default=4, help="env steps per gradient step")
     parser.add_argument("--eval-configs", type=int, default=20)
     parser.add_argument("--out", default="runs/sac")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    env = gymnasium.make(f"pasta/{args.task}-v0")
-    model, curve = make_agent(env, seed=args.seed), Curve()
+    env = gymnasium.make(f"pasta/{args.task}-v0", points=args.points)
+    model = make_agent(env, seed=args.seed, batch_size=args.batch_size, train_freq=args.train_freq)
+    curve = Curve(args.steps, out)
     model.learn(args.steps, callback=curve)
     from safetensors.torch import save_file
 
     save_file({k: v.detach().cpu().contiguous().clone() for k, v in model.policy.state_dict().items()},
               str(out / "policy.safetensors"))
-    np.savetxt(out / "curve.csv", np.array(curve.rows).reshape(-1, 2), delimiter=",", header="step,improvement",
-               comments="")
-    result = {"task": args.task, "steps": args.steps, "seed": args.seed, **evaluate(model, args.task, args.eval_configs)}
+    write_curve(curve.rows, out / "curve.csv")
+    result = {"task": args.task, "steps": args.steps, "seed": args.seed, "points": args.points,
+              "batch_size": args.batch_size, "train_freq": args.train_freq,
+              **evaluate(model, args.task, args.eval_configs, args.points)}
     (out / "result.json").write_text(json.dumps(result, indent=2) + "\n")
     _plot(curve.rows, out / "curve.png", f"SAC-Point on {args.task}")
     print(json.dumps(result))
