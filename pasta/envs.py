@@ -31,7 +31,7 @@ import gymnasium
 import numpy as np
 from gymnasium import spaces
 
-__all__ = ["TRAIN_SEED_BASE", "TaskEnv", "env_id", "register_envs"]
+__all__ = ["TRAIN_SEED_BASE", "RayVectorEnv", "TaskEnv", "env_id", "register_envs"]
 
 #: the task instances an environment draws by default: seeds from here on (the test sets start at 1000,
 #: the validation sets at 2000)
@@ -179,6 +179,90 @@ class TaskEnv(gymnasium.Env):
         improvement = (self._e0 - self._emd_now) / self._e0 if self._e0 > 0 else 0.0
         return {"improvement": float(improvement), "success": bool(improvement > self.task.threshold),
                 "emd": float(self._emd_now), "instance": int(self._instance.seed)}
+
+
+class _EnvActor:
+    """One :class:`TaskEnv` in a Ray worker process (the body of :class:`RayVectorEnv`'s actors)."""
+
+    def __init__(self, task: str, kwargs: dict[str, Any], env: dict[str, str]) -> None:
+        from pasta.distributed import apply_env
+
+        apply_env(env)  # the driver's PASTA_* settings (cache folders)
+        self.env = TaskEnv(task, **kwargs)
+
+    def reset(self, seed: int | None, options: dict[str, Any] | None) -> tuple[dict, dict]:
+        return self.env.reset(seed=seed, options=options)
+
+    def step(self, action: np.ndarray) -> tuple[dict, float, bool, bool, dict]:
+        return self.env.step(action)
+
+
+class RayVectorEnv(gymnasium.vector.VectorEnv):
+    """``num_envs`` copies of a task's environment, each a Ray actor (one CPU, its own simulator), stepped
+    together: Gymnasium's vector API (batched spaces, ``info`` dicts with ``_key`` masks, the next-step
+    autoreset of ``AsyncVectorEnv``), on a local Ray instance or a cluster (``address``: as ``ray.address``
+    of docs/scaling.md). ``kwargs``: :class:`TaskEnv`'s (``points``, ``seeds``, ``settings``, ...).
+    ``reset(seed=s)`` seeds environment ``i`` with ``s + i``."""
+
+    metadata: dict[str, Any] = {"autoreset_mode": gymnasium.vector.AutoresetMode.NEXT_STEP}  # noqa: RUF012
+
+    def __init__(self, task: str, num_envs: int, *, address: str = "", num_cpus: int = 0, **kwargs: Any) -> None:
+        from gymnasium.vector.utils import batch_space
+
+        from pasta.config.validate import check_int
+        from pasta.distributed import BackendConfig, shipped_env
+        from pasta.distributed.ray_backend import ensure_ray
+
+        self.num_envs = check_int(num_envs, "num_envs", low=1)
+        probe = TaskEnv(task, **kwargs)  # checks the arguments here, before any worker starts; no simulator yet
+        self.single_observation_space, self.single_action_space = probe.observation_space, probe.action_space
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._ray = ensure_ray(BackendConfig(name="ray", address=address, num_cpus=num_cpus))
+        actor = self._ray.remote(num_cpus=1)(_EnvActor)
+        self._actors = [actor.remote(task, kwargs, shipped_env()) for _ in range(self.num_envs)]
+        self._done = np.zeros(self.num_envs, bool)
+
+    def _batch(self, observations: list[dict]) -> dict:
+        from gymnasium.vector.utils import concatenate, create_empty_array
+
+        out: Any = create_empty_array(self.single_observation_space, self.num_envs)
+        batched: dict = concatenate(self.single_observation_space, observations, out)  # type: ignore[assignment]
+        return batched  # a Dict space batches to a dict
+
+    def reset(self, *, seed: int | list[int | None] | None = None,
+              options: dict[str, Any] | None = None) -> tuple[dict, dict]:
+        seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)] if not isinstance(seed, list) \
+            else seed
+        results = self._ray.get([a.reset.remote(s, options) for a, s in zip(self._actors, seeds)])
+        infos: dict[str, Any] = {}
+        for i, (_, info) in enumerate(results):
+            infos = self._add_info(infos, info, i)
+        self._done[:] = False
+        return self._batch([obs for obs, _ in results]), infos
+
+    def step(self, actions: Any) -> tuple[dict, np.ndarray, np.ndarray, np.ndarray, dict]:
+        actions = np.asarray(actions, np.float32).reshape(self.num_envs, -1)
+        refs = [a.reset.remote(None, None) if self._done[i] else a.step.remote(actions[i])
+                for i, a in enumerate(self._actors)]  # an environment that ended last step starts its next episode
+        results = self._ray.get(refs)
+        obs: list[dict] = []
+        infos: dict[str, Any] = {}
+        rewards, terminated, truncated = np.zeros(self.num_envs), np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool)
+        for i, res in enumerate(results):
+            if self._done[i]:
+                o, info = res
+            else:
+                o, rewards[i], terminated[i], truncated[i], info = res
+            obs.append(o)
+            infos = self._add_info(infos, info, i)
+        self._done = terminated | truncated
+        return self._batch(obs), rewards, terminated, truncated, infos
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for actor in getattr(self, "_actors", []):
+            self._ray.kill(actor)
+        self._actors = []
 
 
 def _render(sim: Any, goal: np.ndarray, *, title: str = "", dpi: int = 80) -> np.ndarray:

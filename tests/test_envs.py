@@ -80,6 +80,27 @@ def test_a_vector_env_over_processes_steps():
         envs.close()
 
 
+def test_a_vector_env_over_ray_actors_steps_like_the_environments_it_holds():
+    pytest.importorskip("ray")  # CI installs the Ray extra (.ci/run), so this runs there
+    from pasta.envs import RayVectorEnv
+
+    envs = RayVectorEnv("push", 2, num_cpus=2, seeds=SEEDS)
+    try:
+        obs, infos = envs.reset(seed=5)
+        assert obs["dough"].shape == (2, 512, 3) and envs.observation_space.contains(obs)
+        assert infos["instance"].tolist() == [SEEDS[0]] * 2 and infos["_instance"].all()
+        local = TaskEnv("push", seeds=SEEDS)
+        for i in range(2):  # environment i is seeded with seed + i, exactly as a TaskEnv of its own
+            assert np.array_equal(obs["dough"][i], local.reset(seed=5 + i)[0]["dough"])
+        actions = envs.action_space.sample()
+        obs, rewards, terminated, truncated, _ = envs.step(actions)
+        expected = local.step(actions[1])  # the local env is at environment 1's state
+        assert np.array_equal(obs["dough"][1], expected[0]["dough"]) and rewards[1] == expected[1]
+        assert rewards.shape == (2,) and terminated.dtype == bool and truncated.shape == (2,)
+    finally:
+        envs.close()
+
+
 def test_bad_arguments_are_named():
     from pasta.core.errors import ConfigError, PluginNotFoundError
 
