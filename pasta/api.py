@@ -90,16 +90,20 @@ def plan(session: Session, obs: np.ndarray, goal: np.ndarray, *, seed: int = 0, 
 def execute_plan(session: Session, sim: Any, plan: Plan, goal: np.ndarray, *, logger: RunLogger | None = None
             ) -> ExecutionResult:
     """Execute ``plan`` in ``sim`` with the session's controllers (``execute.controller``), step by step under
-    the step monitor; ``.final_dough`` ``(P, 3)`` is the observed end, ``.steps`` what each step did.
+    the step monitor; ``.final_dough`` ``(P, 3)`` is the observed end, ``.steps`` what each step did. The
+    session's ``disturb=`` and ``execute.loop=closed`` apply (``.decisions``, ``.plans``, ``.disturbance``).
     ``logger``: a :class:`RunLogger` that records the run (MCAP)."""
     from pasta.execute.executor import execute_plan as _execute_plan
 
     if not isinstance(plan, Plan):
         raise TypeError(f"plan must be a pasta.Plan (the .plan of pasta.plan(...)), got {type(plan).__name__}")
+    goal = _cloud_arg(goal, "goal")
+    seed = int(session.cfg.seed)
     return _execute_plan(sim, plan, skills={s.name: s for s in session.skills}, encoder=session.encoder,
-                        goal=_cloud_arg(goal, "goal"), cfg=session.exe, perception=session.perception,
+                        goal=goal, cfg=session.exe, perception=session.perception,
                         emd_points=session.task.config.emd_points, emd_seed=session.task.config.emd_seed,
-                        logger=logger)
+                        logger=logger, disturb=str(session.cfg.get("disturb", "")), seed=seed,
+                        replan=session.replanner(goal, seed=seed) if session.exe.loop == "closed" else None)
 
 
 def score(session: Session, final: np.ndarray, instance: TaskInstance) -> Score:

@@ -167,6 +167,14 @@ class Session:
                                  encoder=self.encoder, cost=self.cost, horizon=int(horizon or self.horizon), seed=seed,
                                  skeleton=skeleton, perception=perception or self.perception, check=self.check)
 
+    def replanner(self, goal: Any, *, seed: int = 0) -> Any:
+        """The closed loop's re-planner for ``goal (G, 3)`` with this session's models, planner and checks
+        (:func:`~pasta.execute.episode.replanner`)."""
+        from pasta.execute.episode import replanner
+
+        return replanner(goal, seed=seed, planner=self.planner, planner_name=self.planner_name, skills=self.skills,
+                         encoder=self.encoder, cost=self.cost, perception=self.perception, check=self.check)
+
     def episode(self, seed: int, *, logger: Any = None, sim: Any = None) -> EpisodeOutcome:
         """Plan and execute the task instance ``seed`` (generated and cached on first use) and score it."""
         from pasta.execute.episode import run_episode
