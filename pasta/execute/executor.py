@@ -319,7 +319,8 @@ def execute_plan(
         if replan is not None and len(executed) < plan.horizon:
             plan, executed = _closed_loop(view, plan, executed, replan, entity_labels, encoder.z_dim, cfg, h,
                                           len(plans) - 1, decisions, log, aimed,
-                                          lambda name: bool(getattr(skills[name], "keeps_position", False)), joined)
+                                          lambda name: bool(getattr(skills[name], "keeps_position", False)), joined,
+                                          obs.dough_index)
             if plan is not plans[-1]:
                 plans.append(plan)
                 aimed = {}
@@ -355,10 +356,11 @@ def _closed_loop(view: Any, plan: Plan, executed: set[int],
                  entity_labels: Callable[..., np.ndarray], z_dim: int, cfg: ExecuteConfig, h: int,
                  replans: int, decisions: list[dict[str, Any]], log: Any,
                  aimed: dict[tuple[int, int], np.ndarray], keeps_position: Callable[[str], bool],
-                 joined: list[np.ndarray]) -> tuple[Plan, set[int]]:
+                 joined: list[np.ndarray], known: np.ndarray) -> tuple[Plan, set[int]]:
     """After step ``h``: keep ``plan`` when it fits the observation, else re-plan its remaining steps; when no
-    sequence can bring the observed pieces to the plan's count, join each extra piece to its nearest one
-    (appended to ``joined``) and test again. Appends the decision (kept / re-planned, why, seconds) to
+    sequence can bring the observed pieces to the plan's count, join each extra piece of dough the plan knew
+    (particle ids ``known`` at the step's start) to the piece it belongs to (appended to ``joined``) and test
+    again. Appends the decision (kept / re-planned, why, seconds) to
     ``decisions`` and logs it (:mod:`pasta.execute.loop`)."""
     from pasta.core.errors import CardinalityError
     from pasta.execute.loop import extra_pieces, plan_fit
@@ -380,7 +382,8 @@ def _closed_loop(view: Any, plan: Plan, executed: set[int],
         try:
             new_plan = replan(seen.dough, plan, executed, labels)
         except CardinalityError as exc:
-            pairs = extra_pieces(plan, executed, seen.dough, labels, z_dim, aimed) if not decision.get("joined") else []
+            pairs = extra_pieces(plan, executed, seen.dough, labels, z_dim, aimed, index=seen.dough_index,
+                                 known=known) if not decision.get("joined") else []
             if not pairs:
                 decision["reason"] += f"; re-plan failed ({type(exc).__name__}: {exc})"
                 break

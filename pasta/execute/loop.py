@@ -21,8 +21,8 @@ step (a merge needs a cut) can get it.
 More pieces than any sequence of the registered skills can bring to the goal's count (a piece split in two, a
 lump beside a piece, and no skill that joins two pieces: gather takes three) cannot be re-planned. Then each
 observed piece that the plan cannot account for (left over when the plan's pieces are matched to the observed
-ones) is joined to the observed piece whose union with it lies where the plan expects that piece
-(:func:`extra_pieces`): from then on the two count as one entity,
+ones) and made of dough the plan knew (not a lump dropped beside a piece) is joined to the observed piece whose
+union with it lies where the plan expects that piece (:func:`extra_pieces`): from then on the two count as one entity,
 by particle identity (:func:`join_labels`), so the step that acts on that piece acts on both: a push carries
 the two to the piece's target together, where they merge.
 """
@@ -135,12 +135,15 @@ def warm_start_sequences(remaining: Sequence[str], skills: Sequence[str]) -> tup
 
 
 def extra_pieces(plan: Plan, executed: set[int], dough: np.ndarray, labels: np.ndarray, z_dim: int,
-                 aimed: Mapping[tuple[int, int], np.ndarray] | None = None) -> list[tuple[int, int]]:
+                 aimed: Mapping[tuple[int, int], np.ndarray] | None = None, *, index: np.ndarray | None = None,
+                 known: np.ndarray | None = None) -> list[tuple[int, int]]:
     """``[(extra, partner)]``: the observed pieces the plan cannot account for (more observed than predicted:
     those left over when predicted centroids are matched to observed ones), each with the matched observed
     piece it most likely belongs to: the one whose union with it lies closest (centroid, by point count) to
-    where the plan expects that piece (the other half of a split piece; the piece a lump lies beside). Empty
-    when the counts agree or the plan predicts no set."""
+    where the plan expects that piece (the other half of a split piece). With the points' particle ids
+    ``index (P,)`` and the ids ``known`` before the last step, an extra piece of mostly new dough (a lump
+    dropped beside a piece) belongs to no piece of the plan and is left alone. Empty when the counts agree or
+    the plan predicts no set."""
     from scipy.optimize import linear_sum_assignment
 
     planned = predicted_set(plan, executed, z_dim, aimed)
@@ -152,6 +155,8 @@ def extra_pieces(plan: Plan, executed: set[int], dough: np.ndarray, labels: np.n
     rows, cols = linear_sum_assignment(np.linalg.norm(planned[:, None] - centres[None], axis=-1))
     pairs = []
     for extra in sorted(set(range(k)) - set(cols.tolist())):
+        if index is not None and known is not None and np.isin(index[labels == extra], known).mean() < 0.5:
+            continue  # new dough, not a part of any piece the plan knows
         union = (counts[extra] * centres[extra] + counts[cols, None] * centres[cols]) / (counts[extra] + counts[cols])[:, None]
         miss = np.linalg.norm(union - planned[rows], axis=1)
         pairs.append((extra, int(cols[int(np.argmin(miss))])))

@@ -82,6 +82,10 @@ def test_an_extra_piece_joins_the_piece_whose_place_it_shares():
     pairs = extra_pieces(_cut_then_push(), {0}, dough, labels, Z)
     assert len(pairs) == 1 and set(pairs[0]) == {1, 2}
     assert extra_pieces(_cut_then_push(), {0}, *_observed(0.45, 0.55), Z) == []  # counts agree: nothing extra
+    index = np.arange(len(dough))
+    known = index[labels != 2]  # piece 2's particles were not there before the step: a lump, new dough
+    assert extra_pieces(_cut_then_push(), {0}, dough, labels, Z, index=index, known=known) == []
+    assert len(extra_pieces(_cut_then_push(), {0}, dough, labels, Z, index=index, known=index)) == 1
 
 
 def test_joined_pieces_are_one_entity_by_particle_identity_in_decomposition_order():
