@@ -45,6 +45,22 @@ ABLATIONS = (
 )
 
 
+#: the closed loop under disturbance (docs/policies.md): these tasks, each disturbance kind ("": none)
+LOOP_TASKS = ("crs", "cut_rearrange")
+DISTURBANCES = ("", "shift", "split", "merge", "lump", "noise")
+
+
+def loop_name(task: str, kind: str, *, learned: bool, closed: bool) -> str:
+    """The ``pasta eval`` result name of ``task`` under disturbance ``kind``, open or closed loop."""
+    return (f"{task}_pasta" + ("_learned" if learned else "") + (f"_disturb-{kind}" if kind else "")
+            + ("_loop-closed" if closed else ""))
+
+
+def loop_names() -> list[str]:
+    return [loop_name(task, kind, learned=learned, closed=closed) for task in LOOP_TASKS for kind in DISTURBANCES
+            for learned in (False, True) for closed in (False, True)]
+
+
 def _summary(results: Path, name: str) -> dict | None:
     path = results / f"{name}.json"
     return json.loads(path.read_text()) if path.exists() else None
@@ -85,10 +101,23 @@ def table(results: Path = RESULTS) -> str:
         summary = _summary(results, name)
         _check(summary, name)
         lines.append(f"| {task} | {what} | {_cell(summary)} | {_paper(paper)} | `{settings}` |")
+    lines += ["", "| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
+              "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
+    for task in LOOP_TASKS:
+        for kind in DISTURBANCES:
+            cells = []
+            for learned in (False, True):
+                for closed in (False, True):
+                    name = loop_name(task, kind, learned=learned, closed=closed)
+                    summary = _summary(results, name)
+                    _check(summary, name)
+                    cells.append(_cell(summary))
+            lines.append(f"| {task} | {kind or 'none'} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} |")
     lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs (seeds 1000-1019); "
               "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
               "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
-              "`execute.controller=learned`); its per-episode rows are in `docs/results/`. Plan s: mean planning seconds "
+              "`execute.controller=learned`; under a disturbance: `disturb=KIND`, closed loop: `execute.loop=closed`); its "
+              "per-episode rows are in `docs/results/`. Plan s: mean planning seconds "
               "per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to four runs "
               "shared (`benchmarks/bench_planner.py` times the planner alone)."]
     return "\n".join(lines) + "\n"

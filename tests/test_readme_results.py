@@ -30,6 +30,7 @@ def test_every_cited_row_has_its_episodes():
     rt = _script()
     names = [f"{task}_pasta{suffix}" for task, _, _ in rt.TASKS for suffix in ("", "_learned")]
     names += [name for _, _, name, _, _ in rt.ABLATIONS]
+    names += [name for name in rt.loop_names() if name not in names]
     cited = [name for name in names if (rt.RESULTS / f"{name}.json").exists()]  # the others read "not run"
     assert {f"{task}_pasta" for task, _, _ in rt.TASKS} <= set(cited), "every task has its heuristic row"
     for name in cited:
