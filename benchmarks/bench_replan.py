@@ -35,6 +35,7 @@ def main() -> None:
 
     from pasta.execute.episode import perceive_and_plan, replanner
     from pasta.execute.executor import execute_plan
+    from pasta.execute.loop import remaining_skills
     from pasta.execute.session import build_session
 
     torch.set_num_threads(1)
@@ -55,7 +56,7 @@ def main() -> None:
 
                 def timed(dough, plan, executed, labels, task=task, kind=kind, seed=seed, warm=warm, inst=inst,
                           plan_args=plan_args):
-                    remaining = [plan.steps[j].skill for j in range(plan.horizon) if j not in executed]
+                    remaining = remaining_skills(plan, executed)
                     t0 = time.perf_counter()
                     new = warm(dough, plan, executed, labels)
                     t1 = time.perf_counter()
@@ -63,7 +64,7 @@ def main() -> None:
                                              **plan_args).plan
                     t2 = time.perf_counter()
                     rows.append({"task": task, "kind": kind, "seed": seed, "remaining": len(remaining),
-                                 "stage": 1 if new.skills == tuple(remaining) else 2, "warm_s": t1 - t0,
+                                 "stage": 1 if new.skills == remaining else 2, "warm_s": t1 - t0,
                                  "full_s": t2 - t1, "warm_cost": new.final_cost, "full_cost": full.final_cost,
                                  "new": "-".join(new.skills)})
                     r = rows[-1]

@@ -325,12 +325,12 @@ def replanner(goal: np.ndarray, *, seed: int = 0,
 
     ``plan_args``: the planner, skills, models and checks of :func:`perceive_and_plan`."""
     from pasta.core.errors import CardinalityError
-    from pasta.execute.loop import warm_start_sequences
+    from pasta.execute.loop import remaining_skills, warm_start_sequences
 
     names = [s.name for s in plan_args["skills"]]
 
     def replan(dough: np.ndarray, plan: Plan, executed: set[int], labels: np.ndarray | None = None) -> Plan:
-        remaining = tuple(plan.steps[j].skill for j in range(plan.horizon) if j not in executed)
+        remaining = remaining_skills(plan, executed)
 
         def search(candidates: Sequence[Sequence[str]]) -> Plan:
             return perceive_and_plan(dough, goal, horizon=len(remaining), seed=seed, obs_labels=labels,

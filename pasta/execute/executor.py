@@ -363,7 +363,7 @@ def _closed_loop(view: Any, plan: Plan, executed: set[int],
     again. Appends the decision (kept / re-planned, why, seconds) to
     ``decisions`` and logs it (:mod:`pasta.execute.loop`)."""
     from pasta.core.errors import CardinalityError
-    from pasta.execute.loop import extra_pieces, plan_fit
+    from pasta.execute.loop import extra_pieces, plan_fit, remaining_skills
 
     t0 = time.perf_counter()
     seen = view.observe()
@@ -404,8 +404,8 @@ def _closed_loop(view: Any, plan: Plan, executed: set[int],
             decision["reason"] += f"; re-plan failed ({type(exc).__name__}: {exc})"
             break
         new_executed = set()
-        remaining = [plan.steps[j].skill for j in range(plan.horizon) if j not in executed]
-        decision.update(decision="replanned", remaining=remaining, new=[s.skill for s in new_plan.steps],
+        decision.update(decision="replanned", remaining=list(remaining_skills(plan, executed)),
+                        new=[s.skill for s in new_plan.steps],
                         cost=float(new_plan.final_cost))
         break
     decision["seconds"] = round(time.perf_counter() - t0, 3)

@@ -36,7 +36,7 @@ import numpy as np
 
 from pasta.core.plan import Plan
 
-__all__ = ["Fit", "extra_pieces", "join_labels", "place_matters", "plan_fit", "predicted_set",
+__all__ = ["Fit", "extra_pieces", "join_labels", "place_matters", "plan_fit", "predicted_set", "remaining_skills",
            "warm_start_sequences"]
 
 
@@ -121,6 +121,11 @@ def plan_fit(plan: Plan, executed: set[int], dough: np.ndarray, labels: np.ndarr
                           f"(execute.fit_distance {100 * distance:.1f} cm)", worst, observed, expected)
     return Fit(True, f"{observed} pieces; those that stay where they are lie within {100 * worst:.1f} cm of the "
                      f"plan (execute.fit_distance {100 * distance:.1f} cm)", worst, observed, expected)
+
+
+def remaining_skills(plan: Plan, executed: set[int]) -> tuple[str, ...]:
+    """The skills of ``plan``'s steps not yet ``executed``, in plan order: what a re-plan starts from."""
+    return tuple(step.skill for j, step in enumerate(plan.steps) if j not in executed)
 
 
 def warm_start_sequences(remaining: Sequence[str], skills: Sequence[str]) -> tuple[tuple[str, ...], ...]:
