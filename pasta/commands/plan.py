@@ -5,7 +5,8 @@ the workspace frame (``units=``, ``up=``, ``transform=``), optionally preprocess
 and ``preprocess.*``: :mod:`pasta.perception`), then perceived, planned and checked by the one path that
 ``pasta run`` and ``pasta eval`` use (:func:`pasta.execute.episode.perceive_and_plan`: decomposition with
 ``perception.*``, encoding, the training-box check ``check.box_margin``, planning, the plan's checks and
-flags ``check.*``). Writes ``plan.json`` (with ``info.confidence`` and ``info.flags``), per step
+flags ``check.*``), with the skills the scene allows (``scene=auto|none|TOOL,...``, :mod:`pasta.tasks.scene`).
+Writes ``plan.json`` (with ``info.confidence``, ``info.flags`` and ``info.scene``), per step
 ``h`` the decoded sub-goal entities ``step_{h}_subgoal.npy`` ``(M_h, P, 3)`` (workspace frame) and, for
 another input frame, ``step_{h}_subgoal_input.npy`` (the input's frame and units), and the per-point
 entity labels ``obs_labels.npy`` / ``goal_labels.npy`` (shaped like the input, ``-1`` for dropped
@@ -32,7 +33,7 @@ from pasta.core.errors import ConfigError, InputError
 from pasta.core.files import OutputLock
 
 HELP = ("plan from an observed and a goal point cloud (.npy or .ply): obs=FILE goal=FILE [out=DIR] [units=m|mm] "
-        "[up=y|z] [transform=FILE] [preprocess=none|camera] [key=value ...]")
+        "[up=y|z] [transform=FILE] [preprocess=none|camera] [scene=auto|none|TOOL,...] [key=value ...]")
 
 #: keys of this command: the input files, where the plan goes, and the input contract (docs/real_world.md);
 #: every other key is a run-config key (perception.*, check.*, horizon, skills, skeleton, planner, ...)
@@ -43,6 +44,8 @@ COMMAND_KEYS = {
     "units": "m",
     "up": "y",
     "transform": "",
+    # the scene the skills must fit (pasta.tasks.scene): auto (detected from the clouds), none, or static tools
+    "scene": "auto",
     # preprocessing (pasta.perception.preprocess): a preset, then single keys over it ("" = the preset's value)
     "preprocess": "none",
     **{f"preprocess.{k}": "" for k in ("crop", "crop_low", "crop_high", "table", "table_height", "table_margin",
@@ -66,7 +69,8 @@ WORKSPACE = (0.0, 1.0)
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("overrides", nargs="*", metavar="key=value",
                         help="obs=FILE goal=FILE out=DIR units=m|mm up=y|z transform=FILE preprocess=none|camera "
-                             "preprocess.KEY=V (docs/real_world.md), and any run-config key (`pasta config`): "
+                             "preprocess.KEY=V scene=auto|none|TOOL,... (docs/real_world.md), and any run-config "
+                             "key (`pasta config`): "
                              "models=DIR horizon=H skills=a,b skeleton=a,b,c threads=1 seed=S planner=NAME "
                              "planner.* perception.num_points/min_points/max_points/eps/min_samples check.*")
 
@@ -131,6 +135,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     from pasta.commands.run import apply_threads
     from pasta.config import load_config, section, split_names
     from pasta.execute.episode import perceive_and_plan
+    from pasta.tasks.scene import AUTO, detect_scene, floor_height, scene_from_setting
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
     from pasta.weights import models_root, weight_overrides
 
@@ -146,14 +151,22 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
     skeleton = tuple(split_names(cfg.skeleton, "skeleton")) or None
     if skeleton == ("task",):
         raise ConfigError("skeleton=task needs a task (pasta run / pasta eval); give the skills: skeleton=cut,push,roll")
-    choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins)  # as `pasta run`
-    choice.require(skeleton or (), "skeleton=")
+    floor = floor_height(int(cfg.sim.n_grid))
+    scene = None if mine["scene"].strip() == AUTO else scene_from_setting(mine["scene"], floor, plugins=plugins)
+    if scene is not None:  # a bad skills= or skeleton= is refused before any cloud is read
+        choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins, scene=scene)
+        choice.require(skeleton or (), "skeleton=")
     frame = camera["frame"]  # every key is checked: the work starts
     loaded, clouds, kept, kept_points = {}, {}, {}, {}
     for name in ("obs", "goal"):
         loaded[name] = read_cloud(mine[name], name)
         clouds[name], kept[name], kept_points[name] = prepare_input(loaded[name], name, frame, camera["preprocess"],
                                                                      perception)
+    if scene is None:  # scene=auto: the surfaces the dough rests on (as `pasta run` takes the task's scene)
+        scene = detect_scene((clouds["obs"], clouds["goal"]), floor, perception=perception)
+        choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins, scene=scene)
+        choice.require(skeleton or (), "skeleton=")
+    print(choice.scene_note())
 
     encoder = plugins.encoders.create(cfg.encoder.name, section(cfg, "encoder"))
     cost = plugins.cost_models.create(cfg.cost_model.name, section(cfg, "cost_model"))
@@ -174,7 +187,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
                                  seed=int(cfg.seed), skeleton=skeleton, perception=perception, check=check)
     labels = {name: point_labels(loaded[name], kept[name], kept_points[name], seen.clouds[name], seen.labels[name])
               for name in ("obs", "goal")}
-    plan = dataclasses.replace(seen.plan, info={**seen.plan.info, "input": {
+    plan = dataclasses.replace(seen.plan, info={**seen.plan.info, "scene": scene_record(choice), "input": {
         "frame": frame.describe(), "preprocess": camera["preprocess"].to_dict(),
         "decompose": {"eps": perception.eps, "min_samples": perception.min_samples, "min_points": perception.min_points}}})
     text = plan.to_json()
@@ -192,6 +205,13 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         print(f"warning: {flag['kind']}: {flag['message']}", file=sys.stderr)
     print(f"wrote {out / 'plan.json'} and {len(files)} sub-goal clouds to {out}")
     return EXIT_UNREACHABLE if seen.unreachable else 0
+
+
+def scene_record(choice: Any) -> dict[str, Any]:
+    """plan.json's ``info.scene``: the scene the skills were fitted to and the skills it left out, with why."""
+    scene = choice.scene
+    return {"source": scene.source, "static": list(scene.static), "surfaces": list(scene.surfaces),
+            "left_out": {name: list(why) for name, why in choice.unmet.items()}}
 
 
 def camera_options(mine: dict[str, str]) -> dict[str, Any]:

@@ -49,8 +49,10 @@ def run(args: argparse.Namespace) -> int:
         if opts.kind and kind != opts.kind:
             continue
         for info in registry:
+            needs = info.spec.needs.describe() if kind == "skill" else ""
             rows.append({"kind": kind, "name": info.name, "cardinality": _detail(info), "distribution": info.distribution,
-                         "version": info.version, "plugin": info.plugin, "summary": info.summary})
+                         "version": info.version, "plugin": info.plugin,
+                         "summary": info.summary + (f" (needs {needs})" if needs else ""), "needs": needs})
     failures = plugins.failures
     if args.json:
         print(json.dumps({"plugins": rows, "failures": [f.__dict__ for f in failures]}, indent=2))

@@ -162,10 +162,15 @@ def apply_threads(cfg: Any) -> None:
 
 
 def print_skill_warning(session: Any) -> None:
-    """The one line naming the skills left out for lack of weights (``pasta run`` and ``pasta eval``)."""
-    line = session.skill_choice.warning() if session.skill_choice is not None else None
-    if line:
-        print(line, file=sys.stderr)
+    """The lines naming the skills left out: for the scene (the scene and why, on stdout) and for lack of
+    weights (a warning on stderr); ``pasta run`` and ``pasta eval``."""
+    choice = session.skill_choice
+    if choice is None:
+        return
+    if choice.unmet:
+        print(choice.scene_note())
+    if choice.warning():
+        print(choice.warning(), file=sys.stderr)
 
 
 def write_summary(path: str | Path, session: Any, out: Any) -> Path:

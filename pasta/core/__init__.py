@@ -22,6 +22,7 @@ from pasta.core.errors import (
 from pasta.core.matching import min_cost_matching
 from pasta.core.plan import Plan, PlanStep, kept_indices
 from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons
+from pasta.core.scene import Scene, SceneNeeds
 from pasta.core.skill import Controller, DemoVariant, Skill, SkillObservation, SkillSpec, ToolPose
 from pasta.core.step import StepMonitor, Stop, stop_reason
 from pasta.core.task import Task, TaskScore
@@ -45,6 +46,8 @@ __all__ = [
     "PluginNotFoundError",
     "PluginRuntimeError",
     "PluginValidationError",
+    "Scene",
+    "SceneNeeds",
     "SimulationError",
     "Skill",
     "SkillObservation",

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from pasta.core.errors import InputError, MissingComponentError, PluginValidationError
+from pasta.core.scene import SceneNeeds
 from pasta.core.step import Stop
 
 if TYPE_CHECKING:
@@ -42,6 +43,8 @@ class SkillSpec:
         n_out: ``M_k``, entities the skill produces (>= 1).
         tool: simulator tool the skill drives (``"knife"``).
         description: one line for ``pasta plugins``.
+        needs: what the skill needs from the scene besides its tool (:class:`~pasta.core.SceneNeeds`); the
+            planner never considers the skill in a scene that does not meet them.
     """
 
     name: str
@@ -49,6 +52,7 @@ class SkillSpec:
     n_out: int
     tool: str
     description: str = ""
+    needs: SceneNeeds = field(default_factory=SceneNeeds)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not _NAME.match(self.name):
@@ -60,6 +64,8 @@ class SkillSpec:
                 raise PluginValidationError(f"skill '{self.name}': {attr} must be an integer >= 1, got {value!r}")
         if not isinstance(self.tool, str) or not self.tool:
             raise PluginValidationError(f"skill '{self.name}': tool must be a non-empty string, got {self.tool!r}")
+        if not isinstance(self.needs, SceneNeeds):
+            raise PluginValidationError(f"skill '{self.name}': needs must be a pasta.core.SceneNeeds, got {self.needs!r}")
 
     @property
     def delta(self) -> int:

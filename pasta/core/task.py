@@ -21,6 +21,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from pasta.core.scene import Scene
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -58,6 +60,15 @@ class Task(ABC):
     #: (e.g. ``{"planner": "receding_horizon", "skeleton": "task"}``: plan with that planner and the task's
     #: own skill chain given, as the paper did for CRS-Twice)
     run_defaults: ClassVar[Mapping[str, Any]] = {}
+    #: static tools (registry names) every instance of this task stands up, e.g. ``("board",)``: the scene the
+    #: planner fits the skills to (a skill that needs a tool the scene lacks is never planned)
+    static_tools: ClassVar[tuple[str, ...]] = ()
+
+    def scene(self) -> Scene:
+        """The scene of this task's instances (:class:`~pasta.core.Scene`); surface heights are filled in
+        from the floor and the standing tools (:func:`pasta.tasks.scene.resolve_scene`). Override to name
+        surfaces that are not tools, or to restrict the movable tools at hand."""
+        return Scene(static=tuple(self.static_tools), source=f"task {self.name}")
 
     @property
     def horizon(self) -> int:

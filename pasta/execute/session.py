@@ -255,9 +255,12 @@ def build_session(task: str | None = None, overrides: Sequence[str] = (), *, plu
         return session
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
 
+    from pasta.tasks.scene import floor_height, resolve_scene
+
     exe = section(cfg, "execute")
+    scene = resolve_scene(task_obj.scene(), floor_height(int(cfg.sim.n_grid)), plugins)
     choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins,
-                           policy=exe.controller == "learned", flat=cfg.method == "flat")
+                           policy=exe.controller == "learned", flat=cfg.method == "flat", scene=scene)
     choice.require(task_obj.skeleton, f"task '{name}' (its ground-truth chain)")
     chosen = [task_obj.skill(n) for n in choice.names]
     if exe.controller == "learned":

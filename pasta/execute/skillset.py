@@ -10,6 +10,11 @@ A skill needs, under the models root:
 Without ``skills=``, skills missing any of these are left out and :meth:`SkillChoice.warning` names them
 with the commands that train them; a skill named in ``skills=`` that misses one is an error. The decision
 only looks for the checkpoint files; loading them (and rejecting incompatible ones) is the loaders' job.
+
+Given the scene (:class:`~pasta.core.Scene`: the task's, or ``pasta plan``'s ``scene=``), a skill whose needs
+it does not meet (:attr:`pasta.core.SkillSpec.needs`: a static tool, a raised surface, its own tool) is
+never planned: left out with the reason (:meth:`SkillChoice.scene_note`), and an error when ``skills=`` or
+the skeleton names it. Registering a skill therefore never widens the search of a scene it cannot act in.
 """
 
 from __future__ import annotations
@@ -22,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 from pasta.core.errors import ConfigError, MissingComponentError
 
 if TYPE_CHECKING:
-    from pasta.core import Skill
+    from pasta.core import Scene, Skill
 
 __all__ = ["SkillChoice", "choose_skills", "needs_feasibility_network", "parse_skill_names"]
 
@@ -36,20 +41,35 @@ class SkillChoice:
         left_out: skill -> what it lacks, one ``"<module> (ROOT/...): train with `...`"`` entry per
             missing checkpoint; empty when ``skills=`` was given.
         root: the models root that was searched.
+        scene: the scene the skills were fitted to (``None``: every skill allowed).
+        unmet: skill -> why the scene does not allow it (:meth:`pasta.core.SceneNeeds.unmet`).
     """
 
     names: list[str]
     root: Path
     left_out: dict[str, list[str]] = field(default_factory=dict)
+    scene: Scene | None = None
+    unmet: dict[str, list[str]] = field(default_factory=dict)
 
     def require(self, needed: Sequence[str], what: str) -> None:
         """Raise :class:`ConfigError` when a skill of ``needed`` (used by ``what``) is not chosen, saying why."""
         missing = [n for n in dict.fromkeys(needed) if n not in self.names]
         if not missing:
             return
-        reasons = [f"'{n}': " + ("; ".join(self.left_out[n]) if n in self.left_out else "not in skills=") for n in missing]
+        reasons = [f"'{n}': " + ("; ".join(self.left_out[n]) if n in self.left_out else
+                                 f"the scene ({self.scene.describe() if self.scene else ''}) does not allow it: "
+                                 + "; ".join(self.unmet[n]) if n in self.unmet else "not in skills=") for n in missing]
         raise ConfigError(f"{what} needs the skills {', '.join(dict.fromkeys(needed))}; left out: {'; '.join(reasons)}. "
                           f"Chosen skills: {', '.join(self.names)}")
+
+    def scene_note(self) -> str | None:
+        """One line: the scene and the skills it leaves out, with why (``None`` without a scene)."""
+        if self.scene is None:
+            return None
+        line = f"scene: {self.scene.describe()}"
+        if self.unmet:
+            line += "; left out: " + "; ".join(f"{name} ({', '.join(why)})" for name, why in self.unmet.items())
+        return line
 
     def warning(self) -> str | None:
         """One line naming the left-out skills and the commands that train them (``None`` if none)."""
@@ -77,7 +97,7 @@ def parse_skill_names(value: str | Sequence[str] | None) -> list[str]:
 
 
 def choose_skills(requested: str | Sequence[str] | None, root: str | Path, *, plugins: Any = None,
-                  policy: bool = False, flat: bool = False) -> SkillChoice:
+                  policy: bool = False, flat: bool = False, scene: Scene | None = None) -> SkillChoice:
     """The skills to plan with, given ``skills=`` (``requested``) and the models under ``root``.
 
     Args:
@@ -86,9 +106,12 @@ def choose_skills(requested: str | Sequence[str] | None, root: str | Path, *, pl
         root: models root (``pasta train ... out=ROOT``, or the shipped :data:`pasta.weights.ROOT`).
         policy: learned controllers will run, so every skill needs its policy.
         flat: the Flat 3D method (scene feasibility networks under ``ROOT/flat``).
+        scene: the resolved scene (:func:`pasta.tasks.scene.resolve_scene`); skills whose needs it does not
+            meet are left out (``None``: no scene check).
 
     Raises:
         PluginNotFoundError: a requested name is not a registered skill (the known ones are listed).
+        ConfigError: ``requested`` names a skill the scene does not allow (saying why).
         MissingComponentError: a requested skill lacks weights (the message gives the training command),
             or no registered skill has them.
     """
@@ -101,16 +124,28 @@ def choose_skills(requested: str | Sequence[str] | None, root: str | Path, *, pl
     for name in names:
         plugins.skills.info(name)  # unknown -> PluginNotFoundError listing the registered skills
     candidates = names or plugins.skills.names()
+    unmet: dict[str, list[str]] = {}
+    if scene is not None:
+        from pasta.tasks.scene import scene_fit
+
+        unmet = scene_fit(candidates, scene, plugins.skills)
+        if names and unmet:
+            detail = "; ".join(f"'{name}': {', '.join(why)}" for name, why in unmet.items())
+            raise ConfigError(f"skills= names skills the scene ({scene.describe()}) does not allow: {detail}")
+        candidates = [n for n in candidates if n not in unmet]
     lacking = {name: _missing(plugins.skills.load(name), root, policy=policy, flat=flat) for name in candidates}
     lacking = {name: needs for name, needs in lacking.items() if needs}
     if names and lacking:
         detail = "; ".join(f"skill '{name}' has no {', '.join(needs)}" for name, needs in lacking.items())
         raise MissingComponentError(f"skills= names skills without trained weights under {root}: {detail}")
     chosen = [n for n in candidates if n not in lacking]
+    if not candidates and unmet:
+        detail = "; ".join(f"{name}: {', '.join(why)}" for name, why in unmet.items())
+        raise ConfigError(f"the scene ({scene.describe() if scene else ''}) allows none of the skills ({detail})")
     if not chosen:
         detail = "; ".join(f"{name}: {', '.join(needs)}" for name, needs in lacking.items())
         raise MissingComponentError(f"no registered skill has trained weights under {root} ({detail or 'no skills registered'})")
-    return SkillChoice(chosen, root, lacking)
+    return SkillChoice(chosen, root, lacking, scene, unmet)
 
 
 def needs_feasibility_network(skill: Any) -> bool:

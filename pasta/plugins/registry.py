@@ -238,8 +238,8 @@ def discover(group: str = ENTRY_POINT_GROUP, extra: dict[str, Any] | None = None
       distribution (:data:`BUILTIN_DISTRIBUTION`) is kept and the other is refused; between plugins of
       other distributions none is kept. Either way every refused registration is a failure naming both
       distributions, so a package can never displace a built-in, or another package, silently.
-    - **Tools.** A skill whose ``spec.tool`` is not a registered tool is refused; the failure lists the
-      known tools.
+    - **Tools.** A skill whose ``spec.tool``, or a static tool its ``spec.needs`` names, is not a registered
+      tool is refused; the failure lists the known tools.
     """
     pm = pluggy.PluginManager(hookspecs.PROJECT)
     pm.add_hookspecs(hookspecs)
@@ -345,6 +345,13 @@ def _check_skill_tools(skills: dict[str, PluginInfo], tools: dict[str, PluginInf
             failures.append(PluginFailure(info.plugin, info.distribution, (
                 f"skill '{name}' drives tool '{tool}', which no plugin registers; known tools: {known}. "
                 f"Register it with the pasta_register_tools hook"), "skill", name))
+            continue
+        missing = [t for t in info.spec.needs.static if t not in tools]
+        if missing:  # no scene could ever stand it: the skill would silently never be planned
+            del skills[name]
+            failures.append(PluginFailure(info.plugin, info.distribution, (
+                f"skill '{name}' needs the static tool{'s' if len(missing) > 1 else ''} {', '.join(missing)} "
+                f"(SkillSpec.needs), which no plugin registers; known tools: {known}"), "skill", name))
 
 
 def _dist_name(ep: metadata.EntryPoint) -> str:

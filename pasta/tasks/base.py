@@ -344,6 +344,22 @@ class Task(TaskInterface):
         return Score(e0, e1, ni, ni > self.threshold)
 
 
+def stand_pose(tool: str) -> tuple[float, float, float]:
+    """Where the registered static tool ``tool`` stands (``ToolSpec.stand``); ConfigError when it has none."""
+    from pasta.core.errors import ConfigError, did_you_mean
+    from pasta.plugins import get_plugins
+
+    tools = get_plugins().tools
+    if tool not in tools:
+        raise ConfigError(f"static tool '{tool}' is not registered{did_you_mean(tool, tools.names())}; "
+                          f"registered tools: {', '.join(tools.names())}")
+    stand = tools.info(tool).spec.stand
+    if stand is None:
+        raise ConfigError(f"static tool '{tool}' has no stand pose (ToolSpec.stand): a task cannot stand it up")
+    x, y, z = (float(v) for v in stand)
+    return x, y, z
+
+
 class Generation:
     """Bookkeeping while a task builds one instance: the simulator, the rng, pieces and the chain."""
 
@@ -358,8 +374,9 @@ class Generation:
         self.problems: list[str] = []
 
     def start(self, boxes: list[tuple[tuple[float, float, float], tuple[float, float, float]]]) -> list[np.ndarray]:
-        """Load a scene of boxes ``[(centre, size), ...]`` (particles split by volume), settle it,
-        take the initial state and return the pieces (observed-point indices, one array per box)."""
+        """Load a scene of boxes ``[(centre, size), ...]`` (particles split by volume), settle it, stand
+        the task's static tools (:attr:`Task.static_tools`) at their stand poses, take the initial state
+        and return the pieces (observed-point indices, one array per box)."""
         from pasta.sim import box_particles
 
         cfg = self.task.config
@@ -374,6 +391,8 @@ class Generation:
         self.sim.reset(particles, seed=int(self.rng.integers(2**31)))
         for _ in range(cfg.settle_steps):
             self.sim.step()
+        for tool in self.task.static_tools:  # after settling: the dough settles on the floor, beside them
+            self.sim.set_tool_pose(tool, stand_pose(tool))
         self.init = self.sim.get_state()
         obs_owner = owner_all[self.init.obs_index]
         self.pieces = [np.flatnonzero(obs_owner == i) for i in range(len(boxes))]

@@ -167,7 +167,8 @@ def check_task(task: Task, *, skills: Any = None, seed: int = 1000) -> Any:
     its scoring; return the instance.
 
     Checks: ``task`` is a :class:`pasta.core.Task` with a name, a non-empty skeleton of registered skills
-    (``skills``: a registry, default the registered skills) and a threshold in ``(0, 1]``; the instance
+    (``skills``: a registry, default the registered skills) and a threshold in ``(0, 1]``; its scene allows its
+    skeleton, and the static tools standing in the instance are those the scene declares; the instance
     records the seed and the skeleton; initial and goal clouds are finite ``(P, 3)`` of the same ``P`` and
     differ; the goal scored against itself is a success with improvement 1 and the initial dough scores 0.
     """
@@ -187,7 +188,9 @@ def check_task(task: Task, *, skills: Any = None, seed: int = 1000) -> Any:
     _require(task.horizon == len(skeleton), f"task '{name}': horizon {task.horizon} differs from len(skeleton) = {len(skeleton)}")
     threshold = float(task.threshold)
     _require(0.0 < threshold <= 1.0, f"task '{name}': threshold must lie in (0, 1], got {threshold}")
+    _check_task_scene(task, skeleton, skills)
     inst = task.instance(seed)
+    _check_instance_scene(task, inst)
     _require(int(inst.seed) == seed, f"task '{name}': instance({seed}).seed is {inst.seed}")
     _require(list(inst.skeleton) == list(skeleton), f"task '{name}' seed {seed}: the instance's chain {list(inst.skeleton)} differs from the task's skeleton {list(skeleton)}")
     init, goal = np.asarray(inst.init_points), np.asarray(inst.goal)
@@ -204,6 +207,40 @@ def check_task(task: Task, *, skills: Any = None, seed: int = 1000) -> Any:
     _require(not start.success and abs(start.improvement) < 1e-6,
              f"task '{name}' seed {seed}: the initial dough must score improvement 0 (no success), got {start}")
     return inst
+
+
+def _check_task_scene(task: Task, skeleton: tuple[str, ...], skills: Any) -> None:
+    """The task's scene is a :class:`pasta.core.Scene` of registered static tools that lets its own chain run."""
+    from pasta.core import Scene
+    from pasta.tasks.scene import floor_height, resolve_scene, scene_fit
+
+    name = task.name
+    declared = task.scene()
+    _require(isinstance(declared, Scene), f"task '{name}': scene() must return a pasta.core.Scene, got {declared!r}")
+    sim_config = getattr(task, "sim_config", None)
+    scene = resolve_scene(declared, floor_height(int(getattr(sim_config, "n_grid", 64))))
+    unmet = scene_fit(skeleton, scene, skills)
+    _require(not unmet, f"task '{name}': its scene ({scene.describe()}) does not allow its own chain: {unmet}")
+
+
+def _check_instance_scene(task: Task, inst: Any) -> None:
+    """Where the instance records its tools (``init.tool_names``, ``init.tools``), the static tools that stand in
+    it (away from their parking place) are the ones the task's scene declares."""
+    import numpy as np
+
+    from pasta.plugins.registry import get_plugins
+
+    names = tuple(getattr(getattr(inst, "init", None), "tool_names", ()) or ())
+    if not names:
+        return
+    poses = np.asarray(inst.init.tools, np.float64)
+    tools = get_plugins().tools
+    standing = [n for i, n in enumerate(names) if n in tools and tools.info(n).spec.is_static
+                and float(np.abs(poses[i, :3] - np.asarray(tools.info(n).spec.park)).max()) > 1e-6]
+    declared = sorted(task.scene().static)
+    _require(sorted(standing) == declared,
+             f"task '{task.name}' seed {inst.seed}: static tools standing in the instance {sorted(standing)} differ from "
+             f"its scene's {declared} (declare them in Task.static_tools, or override Task.scene)")
 
 
 #: Search budget for conformance runs: they check a plan's structure, determinism and errors, not its quality.

@@ -51,7 +51,13 @@ def test_plan_from_files(tmp_path, analytic_plugins, capsys):
     shapes = [np.load(out / f"step_{h}_subgoal.npy").shape for h in range(3)]
     assert shapes == [(2, 300, 3), (1, 300, 3), (1, 300, 3)]
     assert json.loads((out / "entities.json").read_text())["goal"] == 2
-    assert "plan by exhaustive" in capsys.readouterr().out
+    text = capsys.readouterr().out
+    assert "plan by exhaustive" in text
+    # scene=auto (the default): the analytic pieces float 3 cm above the floor, read as resting on a surface
+    assert "scene: scene=auto (detected from the clouds: pieces resting above the floor)" in text
+    scene = plan.info["scene"]
+    assert scene["static"] == [] and scene["surfaces"][0] == 0.02 and len(scene["surfaces"]) > 1
+    assert scene["left_out"] == {}  # skills= names the skills: only those are fitted
 
 
 def test_planner_switch_and_determinism(tmp_path, analytic_plugins):

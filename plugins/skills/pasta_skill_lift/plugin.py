@@ -7,12 +7,15 @@ or a demonstration that uses ``lift`` gets the board from the same package.
 
 from dataclasses import dataclass
 
-from pasta.core import SkillSpec
+from pasta.core import SceneNeeds, SkillSpec
 from pasta.plugins import hookimpl
 from pasta_skill_lift.tool import BOARD, BOARD_TOP, SPATULA
 
+#: the lift sets dough down on a raised surface (the board's top is 7 cm; the floor, 2 cm, is what push is for):
+#: any standing static tool whose top lies 4-25 cm high will do, so a user's own shelf or stand qualifies too
 SPEC = SkillSpec(name="lift", n_in=1, n_out=1, tool="spatula",
-                 description="lift one dough piece with the spatula and set it down on the raised board")
+                 description="lift one dough piece with the spatula and set it down on the raised board",
+                 needs=SceneNeeds(surface=(0.04, 0.25), why="a raised surface to set the dough down on"))
 
 
 @dataclass

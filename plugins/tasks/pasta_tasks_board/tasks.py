@@ -1,9 +1,9 @@
 """LiftSpread and GatherMove (the paper's DiffSkill tasks, horizon 2 each), on the raised cutting board.
 
-The board (a static tool the lift skill package registers) is put at its stand pose (``ToolSpec.stand``:
-x 0.15-0.45, z 0.34-0.66, top at y 0.07) after the dough has settled, and stays there for the whole
-episode (it is part of the initial simulator state). Every goal is the state the ground-truth chain of
-scripted experts reaches with the random parameters drawn here:
+The board (a static tool the lift skill package registers) is the tasks' scene (``static_tools``): it stands
+at its stand pose (``ToolSpec.stand``: x 0.15-0.45, z 0.34-0.66, top at y 0.07) from the initial state on, put
+there after the dough has settled (:meth:`pasta.tasks.base.Generation.start`). Every goal is the state the
+ground-truth chain of scripted experts reaches with the random parameters drawn here:
 
 - ``lift_spread``: a dough cube (side U(0.055, 0.07)) on the floor right of the board (x 0.62-0.75,
   z 0.4-0.6); lift it onto the board (target centroid x 0.27-0.32, z 0.45-0.55), then roll it into a
@@ -26,12 +26,6 @@ import numpy as np
 
 from pasta.demos.scene import lumps, standing_tool
 from pasta.tasks.base import SCORING_FIELDS, Generation, Score, Task, TaskConfig, TaskInstance
-
-
-def place_board(gen: Generation) -> None:
-    """Put the board at its stand pose and take the initial state again (the board is part of it)."""
-    gen.sim.set_tool_pose("board", standing_tool("board").stand)
-    gen.init = gen.sim.get_state()
 
 
 def lift_target(gen: Generation, x: tuple[float, float], z: tuple[float, float]) -> dict[str, float]:
@@ -90,6 +84,7 @@ class LiftSpreadTask(Task):
     name = "lift_spread"
     config_class = LiftSpreadConfig
     skeleton = ("lift", "roll")
+    static_tools = ("board",)
     summary = "lift a dough cube onto the raised board with the spatula, roll it flat there"
     scoring_fields = (*SCORING_FIELDS, "min_flattening")
 
@@ -106,7 +101,6 @@ class LiftSpreadTask(Task):
         side = float(gen.rng.uniform(cfg.side_min, cfg.side_max))
         centre = (float(gen.rng.uniform(0.62, 0.75)), floor + side / 2, float(gen.rng.uniform(0.4, 0.6)))
         gen.start([(centre, (side, side, side))])
-        place_board(gen)
         gen.run("lift", 0, lift_target(gen, (cfg.target_x_min, cfg.target_x_max), (cfg.target_z_min, cfg.target_z_max)))
         gen.run("roll", 0, roll_params(gen, side, cfg))
 
@@ -128,12 +122,12 @@ class GatherMoveTask(Task):
     name = "gather_move"
     config_class = GatherMoveConfig
     skeleton = ("gather", "lift")
+    static_tools = ("board",)
     summary = "gather three lumps into one piece with the gripper, lift it onto the board"
 
     def build(self, gen: Generation) -> None:
         cfg = self.config
         gen.start(lumps(gen.rng, float(gen.sim.floor_y), (0.6, 0.75), (0.4, 0.6)))
-        place_board(gen)
         # the gather consumes all three lumps: they are one attended piece of the chain
         gen.pieces[:] = [np.concatenate(gen.pieces)]
         gen.run("gather", 0)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pasta.core import Scene
 from pasta.core.errors import ConfigError
 from pasta.tasks.base import Generation, Task, TaskConfig
 
@@ -60,6 +61,16 @@ class SkillTask(Task):
     @property
     def skeleton(self) -> tuple[str, ...]:  # type: ignore[override]  # the chain is the configured skill
         return (self.config.skill,)
+
+    def scene(self) -> Scene:
+        """The static tools the skill's demonstration scene stands up, with their tops where they are put."""
+        from pasta.demos.generate import demo_tools
+        from pasta.plugins import get_plugins
+
+        placed = demo_tools(self.skill(self.config.skill), self.config.scene)
+        tools = get_plugins().tools
+        tops = tuple(pose.position[1] + tools.info(name).spec.extent()[1][1] for name, pose in placed.items())
+        return Scene(static=tuple(placed), surfaces=tops, source=f"task skill ({self.config.skill})")
 
     def build(self, gen: Generation) -> None:
         from pasta.demos.generate import demo_tools
