@@ -153,9 +153,9 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         raise ConfigError("skeleton=task needs a task (pasta run / pasta eval); give the skills: skeleton=cut,push,roll")
     floor = floor_height(int(cfg.sim.n_grid))
     scene = None if mine["scene"].strip() == AUTO else scene_from_setting(mine["scene"], floor, plugins=plugins)
-    if scene is not None:  # a bad skills= or skeleton= is refused before any cloud is read
-        choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins, scene=scene)
-        choice.require(skeleton or (), "skeleton=")
+    # a bad skills= or skeleton= is refused before any cloud is read (with scene=auto, fitted again once detected)
+    choice = choose_skills(split_names(cfg.skills, "skills") or None, root, plugins=plugins, scene=scene)
+    choice.require(skeleton or (), "skeleton=")
     frame = camera["frame"]  # every key is checked: the work starts
     loaded, clouds, kept, kept_points = {}, {}, {}, {}
     for name in ("obs", "goal"):
