@@ -66,11 +66,26 @@ def _summary(results: Path, name: str) -> dict | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
+#: the mark of a row whose run planned with a skill its task's scene does not allow (run before the scene check)
+OUTSIDE_SCENE = "†"
+
+
 def _cell(summary: dict | None) -> str:
     if summary is None:
         return "not run"
     return (f"{summary['improvement_mean']:.3f} ± {summary['improvement_std']:.3f} / "
-            f"{100 * summary['success_rate']:.0f}%")
+            f"{100 * summary['success_rate']:.0f}%" + (OUTSIDE_SCENE if outside_scene(summary) else ""))
+
+
+def outside_scene(summary: dict) -> list[str]:
+    """The skills of ``summary``'s recorded skill set that its task's scene does not allow (pasta.tasks.scene): a
+    row run before pasta fitted the skills to the scene, to be re-run."""
+    from pasta.tasks import get_task
+    from pasta.tasks.scene import floor_height, resolve_scene, scene_fit
+
+    task = get_task(summary["task"])
+    scene = resolve_scene(task.scene(), floor_height(int(summary["config"]["sim"]["n_grid"])))
+    return sorted(scene_fit(summary.get("skills") or [], scene))
 
 
 def _paper(paper: tuple[float, float] | None) -> str:
@@ -120,6 +135,10 @@ def table(results: Path = RESULTS) -> str:
               "per-episode rows are in `docs/results/`. Plan s: mean planning seconds "
               "per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to four runs "
               "shared (`benchmarks/bench_planner.py` times the planner alone)."]
+    if any(OUTSIDE_SCENE in line for line in lines[:-1]):
+        lines += ["", f"{OUTSIDE_SCENE} Run before pasta fitted the skills to the task's scene: the lift (which needs a "
+                  "raised surface) was a candidate in a task without the board; the current code leaves it out "
+                  "(docs/planning.md, \"The scene\"). To be re-run."]
     return "\n".join(lines) + "\n"
 
 

@@ -40,3 +40,14 @@ def test_every_cited_row_has_its_episodes():
         assert sorted(r["seed"] for r in rows) == list(range(1000, 1020)), name
         mean = sum(r["improvement"] for r in rows) / len(rows)
         assert abs(mean - summary["improvement_mean"]) < 1e-9, name
+
+
+def test_rows_planned_with_a_skill_their_scene_leaves_out_are_marked():
+    rt = _script()
+    config = {"sim": {"n_grid": 64}}
+    assert rt.outside_scene({"task": "crs", "skills": ["cut", "lift", "push"], "config": config}) == ["lift"]
+    assert rt.outside_scene({"task": "lift_spread", "skills": ["lift", "roll"], "config": config}) == []
+    summary = {"task": "crs", "skills": ["cut", "push", "roll"], "config": config, "improvement_mean": 0.9,
+               "improvement_std": 0.1, "success_rate": 1.0}
+    assert rt._cell(summary) == "0.900 ± 0.100 / 100%"
+    assert rt._cell({**summary, "skills": ["cut", "lift"]}).endswith(rt.OUTSIDE_SCENE)
