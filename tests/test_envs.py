@@ -134,3 +134,45 @@ def test_sac_point_trains_on_an_env_and_its_policy_acts(tmp_path):
     obs, _ = env.reset(seed=1)
     action, _ = model.predict(obs, deterministic=True)
     assert env.action_space.contains(action.astype(np.float32))
+
+
+def test_sac_point_checkpoints_resume_a_killed_run(tmp_path):
+    """scripts/train_sac.py's checkpoint (safetensors + npz + JSON, no pickle) restores the networks, optimisers,
+    replay buffer and counters; two runs resumed from one checkpoint train to the same weights."""
+    import importlib.util
+    from pathlib import Path
+
+    import torch
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / "train_sac.py"
+    spec = importlib.util.spec_from_file_location("train_sac", path)
+    train_sac = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(train_sac)
+    settings = {"task": "push", "seed": 0, "points": 64, "batch_size": 8, "train_freq": 4}
+
+    def agent():
+        env = gymnasium.make("pasta/push-v0", seeds=SEEDS, points=64)
+        return train_sac.make_agent(env, buffer_size=200, learning_starts=10, batch_size=8)
+
+    first = agent()
+    (tmp_path / "during").mkdir()
+    first.learn(20, callback=train_sac.Curve(20, tmp_path / "during", every=0, checkpoint_every=20, settings=settings))
+    folder = tmp_path / "during" / "checkpoint"  # written by the callback at env step 20
+    assert sorted(p.name for p in folder.iterdir()) == ["buffer.npz", "model.safetensors", "state.json"]
+    train_sac.save_checkpoint(first, tmp_path / "checkpoint", settings)  # after the step's update
+    saved = {k: v.clone() for k, v in first.policy.state_dict().items()}
+    weights = []
+    for _ in range(2):
+        resumed = agent()
+        assert train_sac.load_checkpoint(resumed, tmp_path / "checkpoint", settings) == 20
+        state = resumed.policy.state_dict()
+        assert all(torch.equal(saved[k], state[k]) for k in saved)
+        assert resumed.replay_buffer.pos == 20
+        np.testing.assert_array_equal(resumed.replay_buffer.actions[:20], first.replay_buffer.actions[:20])
+        resumed.learn(8, reset_num_timesteps=False)
+        assert resumed.num_timesteps == 28
+        weights.append([p.detach().clone() for p in resumed.policy.parameters()])
+    assert all(torch.equal(a, b) for a, b in zip(*weights))  # reproducible from the checkpoint
+    assert any(not torch.equal(a, saved_a) for a, saved_a in zip(weights[0], first.policy.parameters()))  # it trained
+    with pytest.raises(SystemExit, match="other settings"):
+        train_sac.load_checkpoint(agent(), tmp_path / "checkpoint", {**settings, "points": 128})
