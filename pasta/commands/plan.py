@@ -187,7 +187,7 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
                                  seed=int(cfg.seed), skeleton=skeleton, perception=perception, check=check)
     labels = {name: point_labels(loaded[name], kept[name], kept_points[name], seen.clouds[name], seen.labels[name])
               for name in ("obs", "goal")}
-    plan = dataclasses.replace(seen.plan, info={**seen.plan.info, "scene": scene_record(choice), "input": {
+    plan = dataclasses.replace(seen.plan, info={**seen.plan.info, "scene": choice.record(), "input": {
         "frame": frame.describe(), "preprocess": camera["preprocess"].to_dict(),
         "decompose": {"eps": perception.eps, "min_samples": perception.min_samples, "min_points": perception.min_points}}})
     text = plan.to_json()
@@ -205,13 +205,6 @@ def plan_files(items: list[str], *, plugins: Any = None) -> int:
         print(f"warning: {flag['kind']}: {flag['message']}", file=sys.stderr)
     print(f"wrote {out / 'plan.json'} and {len(files)} sub-goal clouds to {out}")
     return EXIT_UNREACHABLE if seen.unreachable else 0
-
-
-def scene_record(choice: Any) -> dict[str, Any]:
-    """plan.json's ``info.scene``: the scene the skills were fitted to and the skills it left out, with why."""
-    scene = choice.scene
-    return {"source": scene.source, "static": list(scene.static), "surfaces": list(scene.surfaces),
-            "left_out": {name: list(why) for name, why in choice.unmet.items()}}
 
 
 def camera_options(mine: dict[str, str]) -> dict[str, Any]:

@@ -126,6 +126,7 @@ class Session:
                 "controller": "heuristic" if oracle else self.exe.controller,
                 "horizon": self.horizon, "models": str(self.models),
                 "skills": list(self.task.skeleton) if oracle else [sk.name for sk in self.skills],
+                "scene": self.skill_choice.record() if self.skill_choice is not None else None,
                 "config": OmegaConf.to_container(self.cfg, resolve=True),
                 "feasibility_training": self.feasibility_training()}
 

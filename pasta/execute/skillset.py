@@ -62,6 +62,14 @@ class SkillChoice:
         raise ConfigError(f"{what} needs the skills {', '.join(dict.fromkeys(needed))}; left out: {'; '.join(reasons)}. "
                           f"Chosen skills: {', '.join(self.names)}")
 
+    def record(self) -> dict[str, Any] | None:
+        """The scene the skills were fitted to and the skills it left out, with why, as JSON (``None``: no scene)."""
+        if self.scene is None:
+            return None
+        scene = self.scene
+        return {"source": scene.source, "static": list(scene.static), "surfaces": list(scene.surfaces),
+                "left_out": {name: list(why) for name, why in self.unmet.items()}}
+
     def scene_note(self) -> str | None:
         """One line: the scene and the skills it leaves out, with why (``None`` without a scene)."""
         if self.scene is None:

@@ -108,6 +108,8 @@ def test_every_task_plans_only_with_skills_its_scene_allows():
         assert scene is not None and scene.source == f"task {name}"
         assert not scene_fit([s.name for s in session.skills], scene, plugins.skills), name
         assert ("lift" in [s.name for s in session.skills]) == ("board" in scene.static), name
+        record = session.describe()["scene"]  # what a result row records
+        assert record["static"] == list(scene.static) and ("lift" in record["left_out"]) == ("board" not in scene.static)
 
 
 class _ShelfSkillPlugin:
