@@ -127,8 +127,24 @@ class Session:
                 "horizon": self.horizon, "models": str(self.models),
                 "skills": list(self.task.skeleton) if oracle else [sk.name for sk in self.skills],
                 "scene": self.skill_choice.record() if self.skill_choice is not None else None,
+                "weights": self.weights_record(),
                 "config": OmegaConf.to_container(self.cfg, resolve=True),
                 "feasibility_training": self.feasibility_training()}
+
+    def weights_record(self) -> dict[str, str]:
+        """The checkpoints this session plans and acts with, each as the first 16 hex digits of the SHA-256 of its
+        ``model.safetensors`` (``encoder``, ``cost``, ``feasibility/<skill>``, ``policy/<skill>``): a result row
+        then says which weights made it, and a row made with weights since replaced can be told apart."""
+        from pasta.io.checkpoint import weights_digest
+
+        if self.method in ("oracle", "flat"):
+            return {}
+        dirs = {"encoder": self.cfg.encoder.weights, "cost": self.cfg.cost_model.weights}
+        for sk in self.skills:
+            dirs[f"feasibility/{sk.name}"] = self.models / "feasibility" / sk.name
+            if self.exe.controller == "learned":
+                dirs[f"policy/{sk.name}"] = self.models / "policy" / sk.name
+        return {name: digest for name, digest in ((n, weights_digest(d)) for n, d in dirs.items()) if digest}
 
     def feasibility_training(self) -> dict[str, dict[str, Any]]:
         """Per planned skill, the negatives its attached feasibility network was trained with

@@ -145,3 +145,14 @@ def load_checkpoint(
     if problems:
         raise IncompatibleCheckpointError(f"checkpoint {weights} does not fit: " + "; ".join(problems))
     return Checkpoint(weights, module, load_file(str(weights)), config, doc.get("state", {}))
+
+
+def weights_digest(directory: str | os.PathLike, name: str = "model") -> str:
+    """The first 16 hex digits of the SHA-256 of ``directory/<name>.safetensors`` (``""`` when there is none): which
+    weights a result was made with."""
+    import hashlib
+
+    path = Path(directory) / f"{name}.safetensors"
+    if not path.is_file():
+        return ""
+    return hashlib.sha256(path.read_bytes()).hexdigest()[:16]

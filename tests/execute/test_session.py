@@ -2,6 +2,7 @@
 
 import argparse
 import json
+from pathlib import Path
 
 import pytest
 
@@ -151,3 +152,16 @@ def test_eval_validation_split_runs_its_own_seeds_into_its_own_file(tmp_path, mo
     assert json.loads((tmp_path / "crs_pasta_val.json").read_text())["split"] == "val"
     with pytest.raises(ConfigError, match="split=train: must be one of test, val"):
         eval_cmd.run(argparse.Namespace(overrides=["task=crs", "split=train", f"out={tmp_path}"]))
+
+
+def test_result_rows_record_the_weights_they_were_made_with(tmp_path):
+    import hashlib
+
+    from pasta.io.checkpoint import weights_digest
+
+    session = build_session("cut_rearrange", skills="cut,push")
+    weights = session.describe()["weights"]
+    assert set(weights) == {"encoder", "cost", "feasibility/cut", "feasibility/push"}
+    cost_file = Path(session.cfg.cost_model.weights) / "model.safetensors"
+    assert weights["cost"] == hashlib.sha256(cost_file.read_bytes()).hexdigest()[:16]
+    assert weights_digest(tmp_path) == ""  # no checkpoint there
