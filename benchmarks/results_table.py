@@ -66,7 +66,8 @@ def _summary(results: Path, name: str) -> dict | None:
     return json.loads(path.read_text()) if path.exists() else None
 
 
-#: the mark of a row whose run planned with a skill its task's scene does not allow (run before the scene check)
+#: the mark of a row made by an earlier pasta: planned with a skill its task's scene does not allow (before the scene
+#: check), or with weights other than the shipped ones (before the cost model learned height)
 OUTSIDE_SCENE = "†"
 
 
@@ -74,7 +75,38 @@ def _cell(summary: dict | None) -> str:
     if summary is None:
         return "not run"
     return (f"{summary['improvement_mean']:.3f} ± {summary['improvement_std']:.3f} / "
-            f"{100 * summary['success_rate']:.0f}%" + (OUTSIDE_SCENE if outside_scene(summary) else ""))
+            f"{100 * summary['success_rate']:.0f}%" + (OUTSIDE_SCENE if stale(summary) else ""))
+
+
+def stale(summary: dict) -> list[str]:
+    """Why ``summary`` is not what the current pasta makes: ``scene`` (:func:`outside_scene`), ``weights``
+    (:func:`other_weights`); empty when it is current."""
+    return [why for why, found in (("scene", outside_scene(summary)), ("weights", other_weights(summary))) if found]
+
+
+def other_weights(summary: dict) -> list[str]:
+    """The checkpoints ``summary``'s row was made with that differ from those its settings load now (digests of
+    ``model.safetensors``); ``["unrecorded"]`` for a row made before rows recorded their weights (2026-12-05, when the
+    shipped cost model was retrained). Oracle and Flat 3D rows are left out (the scene-level models did not change)."""
+    from pasta.io.checkpoint import weights_digest
+    from pasta.weights import ROOT
+
+    if summary.get("method") in ("oracle", "flat"):
+        return []
+    recorded = summary.get("weights")
+    if not recorded:
+        return ["unrecorded"]
+    config = summary["config"]
+
+    def local(path: str) -> Path:  # a path of the machine that made the row, under this checkout's shipped weights
+        marker = "pasta/weights/"
+        text = str(path)
+        return ROOT / text.split(marker, 1)[1] if marker in text and not Path(text).exists() else Path(text)
+
+    root = local(config.get("models") or str(ROOT))
+    where = {"encoder": local(config["encoder"]["weights"]), "cost": local(config["cost_model"]["weights"])}
+    return sorted(name for name, digest in recorded.items()
+                  if weights_digest(where.get(name, root / name)) != digest)
 
 
 def outside_scene(summary: dict) -> list[str]:
@@ -136,9 +168,9 @@ def table(results: Path = RESULTS) -> str:
               "per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to four runs "
               "shared (`benchmarks/bench_planner.py` times the planner alone)."]
     if any(OUTSIDE_SCENE in line for line in lines[:-1]):
-        lines += ["", f"{OUTSIDE_SCENE} Run before pasta fitted the skills to the task's scene: the lift (which needs a "
-                  "raised surface) was a candidate in a task without the board; the current code leaves it out "
-                  "(docs/planning.md, \"The scene\"). To be re-run."]
+        lines += ["", f"{OUTSIDE_SCENE} Made by an earlier pasta, to be re-run: with the cost model shipped before "
+                  "2026-12-05 (which could not tell heights apart, docs/planning.md), and in tasks without the board "
+                  "with the lift among the candidates (the scene now leaves it out, docs/planning.md, \"The scene\")."]
     return "\n".join(lines) + "\n"
 
 

@@ -48,9 +48,26 @@ def test_rows_planned_with_a_skill_their_scene_leaves_out_are_marked():
     assert rt.outside_scene({"task": "crs", "skills": ["cut", "lift", "push"], "config": config}) == ["lift"]
     assert rt.outside_scene({"task": "lift_spread", "skills": ["lift", "roll"], "config": config}) == []
     summary = {"task": "crs", "skills": ["cut", "push", "roll"], "config": config, "improvement_mean": 0.9,
-               "improvement_std": 0.1, "success_rate": 1.0}
+               "improvement_std": 0.1, "success_rate": 1.0, "method": "oracle"}
     assert rt._cell(summary) == "0.900 ± 0.100 / 100%"
     assert rt._cell({**summary, "skills": ["cut", "lift"]}).endswith(rt.OUTSIDE_SCENE)
+
+
+def test_rows_made_with_other_weights_than_the_shipped_ones_are_marked():
+    from pasta.io.checkpoint import weights_digest
+    from pasta.weights import ROOT
+
+    rt = _script()
+    # paths as another machine recorded them: read under this checkout's shipped weights
+    config = {"models": "", "encoder": {"weights": "/elsewhere/pasta/weights/vae"},
+              "cost_model": {"weights": "/elsewhere/pasta/weights/cost"}, "sim": {"n_grid": 64}}
+    current = {"encoder": weights_digest(ROOT / "vae"), "cost": weights_digest(ROOT / "cost"),
+               "feasibility/cut": weights_digest(ROOT / "feasibility" / "cut")}
+    row = {"task": "crs", "method": "pasta", "skills": ["cut"], "config": config, "weights": current}
+    assert rt.other_weights(row) == [] and rt.stale(row) == []
+    assert rt.other_weights({**row, "weights": {**current, "cost": "0" * 16}}) == ["cost"]
+    assert rt.other_weights({**row, "weights": None}) == ["unrecorded"]
+    assert rt.stale({**row, "weights": None, "skills": ["lift"]}) == ["scene", "weights"]
 
 
 def test_no_episode_of_a_current_row_plans_a_skill_its_scene_leaves_out():
