@@ -86,8 +86,11 @@ def test_deadline_is_derived_from_the_task_or_given(tmp_path, monkeypatch):
     assert episode_deadline(build_session("push", ["method=oracle"])) == 600 + 100 + 260
     assert episode_deadline(build_session("push", ["method=oracle", "execute.retries=0"])) == 600 + 100 + 130
     assert episode_deadline(build_session("push", ["method=oracle", "task.n_particles=10000"])) == 600 + 2 * 360
-    # a planning method: PLAN_S per horizon step, every skill planned with at its own step limit (lift's 160)
-    assert episode_deadline(build_session("push")) == 600 + PLAN_S + (10 + 170) + (160 + 50) * 2
+    # a planning method: PLAN_S per horizon step, every skill planned with at the longest step limit of the skills the
+    # scene allows: the push task has no board, so not the lift's 160 but the cut's 130
+    assert episode_deadline(build_session("push")) == 600 + PLAN_S + (10 + 140) + (130 + 50) * 2
+    # lift_spread (horizon 2, the board stands): the lift's 160
+    assert episode_deadline(build_session("lift_spread")) == 600 + 2 * PLAN_S + (10 + 2 * 170) + (160 + 50) * 2 * 2
 
 
 def test_episode_lines_end_with_an_eta(tmp_path, monkeypatch, capsys):
