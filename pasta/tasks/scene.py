@@ -70,8 +70,11 @@ def detect_scene(clouds: Iterable[np.ndarray], floor: float, *, perception: Any 
     :data:`RAISED` above ``floor`` adds a surface at its bottom's height; no static tool is named."""
     from pasta.core.decompose import decompose_labels
 
-    eps, min_samples, min_points = ((0.03, 6, 50) if perception is None else
-                                    (float(perception.eps), int(perception.min_samples), int(perception.min_points)))
+    if perception is None:  # the run config's decomposition settings, not a second copy of their defaults
+        from pasta.config.run import PerceptionConfig
+
+        perception = PerceptionConfig()
+    eps, min_samples, min_points = float(perception.eps), int(perception.min_samples), int(perception.min_points)
     tops = []
     for cloud in clouds:
         pts = np.asarray(cloud, np.float64).reshape(-1, 3)
