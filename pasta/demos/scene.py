@@ -9,8 +9,8 @@ config. Nothing here names a skill: everything comes from what is registered.
 Scene helpers shared by task plugins and skill plugins' demonstration scenes (a scene is a list of boxes
 ``[(centre (3,), size (3,))]``; unit cube, y up, ``floor`` the height the dough rests on): :func:`crs_box`
 (the CRS dough), :func:`small_box` (a piece like the one a cut leaves), :func:`lumps` (three lumps in a
-row), the spreading area :data:`SPREAD_X` and the dough height :data:`HEIGHT`; :func:`standing_tool` finds
-a static tool that another plugin registers (the raised board) and where it stands. Tasks and demonstrations
+row), the spreading area :data:`SPREAD_X` and the dough height :data:`HEIGHT`; :func:`standing_tool` (from
+:mod:`pasta.tasks.scene`) finds a static tool that another plugin registers (the raised board) and where it stands. Tasks and demonstrations
 draw from the same samplers, so the scenes a skill is trained on are the scenes its tasks show.
 """
 
@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from pasta.core.errors import ConfigError, InputError, PastaError, did_you_mean
-from pasta.core.tool import ToolSpec
+from pasta.tasks.scene import standing_tool as standing_tool  # re-exported: the scene helpers plugins use
 
 if TYPE_CHECKING:
     from pasta.core import Skill
@@ -129,28 +129,6 @@ def scene_particles(boxes: list[tuple], n: int, rng: np.random.Generator) -> tup
 
 
 # -- scene helpers ---------------------------------------------------------------------------------------
-def standing_tool(name: str, plugins: Any = None) -> ToolSpec:
-    """The registered :class:`~pasta.core.ToolSpec` ``name``, which must have a stand pose
-    (``spec.stand`` (3,), its top ``spec.stand_top``): how a skill or a task uses a tool another plugin
-    registers without importing that plugin.
-
-    Raises:
-        ConfigError: no plugin registers ``name`` (with the registered tools), or it has no stand pose.
-    """
-    if plugins is None:
-        from pasta.plugins import get_plugins
-
-        plugins = get_plugins()
-    tools = plugins.tools
-    if name not in tools:
-        raise ConfigError(f"tool '{name}' is not registered{did_you_mean(name, tools.names())}; "
-                          f"registered tools: {', '.join(tools.names()) or 'none'}")
-    spec = tools.spec(name)
-    if spec.stand is None:
-        raise ConfigError(f"tool '{name}' ({tools.info(name).origin}) has no stand pose (ToolSpec.stand)")
-    return spec
-
-
 #: x range of the spreading area (where pieces are rolled flat)
 SPREAD_X = (0.22, 0.32)
 #: height of the CRS dough and of the small pieces cut off it

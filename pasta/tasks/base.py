@@ -28,6 +28,7 @@ from pasta.core import InputError, PluginConfig, SimulationError, Skill, TaskSco
 from pasta.core import Task as TaskInterface
 from pasta.core.metrics import emd, normalized_improvement
 from pasta.tasks.npz import read_npz, write_npz
+from pasta.tasks.scene import standing_tool
 
 #: bump when generated instances change for the same seed and settings (invalidates caches)
 GENERATOR_VERSION = 1
@@ -344,22 +345,6 @@ class Task(TaskInterface):
         return Score(e0, e1, ni, ni > self.threshold)
 
 
-def stand_pose(tool: str) -> tuple[float, float, float]:
-    """Where the registered static tool ``tool`` stands (``ToolSpec.stand``); ConfigError when it has none."""
-    from pasta.core.errors import ConfigError, did_you_mean
-    from pasta.plugins import get_plugins
-
-    tools = get_plugins().tools
-    if tool not in tools:
-        raise ConfigError(f"static tool '{tool}' is not registered{did_you_mean(tool, tools.names())}; "
-                          f"registered tools: {', '.join(tools.names())}")
-    stand = tools.info(tool).spec.stand
-    if stand is None:
-        raise ConfigError(f"static tool '{tool}' has no stand pose (ToolSpec.stand): a task cannot stand it up")
-    x, y, z = (float(v) for v in stand)
-    return x, y, z
-
-
 class Generation:
     """Bookkeeping while a task builds one instance: the simulator, the rng, pieces and the chain."""
 
@@ -392,7 +377,7 @@ class Generation:
         for _ in range(cfg.settle_steps):
             self.sim.step()
         for tool in self.task.static_tools:  # after settling: the dough settles on the floor, beside them
-            self.sim.set_tool_pose(tool, stand_pose(tool))
+            self.sim.set_tool_pose(tool, tuple(float(v) for v in standing_tool(tool).stand))
         self.init = self.sim.get_state()
         obs_owner = owner_all[self.init.obs_index]
         self.pieces = [np.flatnonzero(obs_owner == i) for i in range(len(boxes))]

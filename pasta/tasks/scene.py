@@ -6,7 +6,8 @@ the floor and the top of every standing static tool that has a stand pose (``Too
 :func:`detect_scene` is what ``auto`` does: a dough piece of the observed or the goal cloud whose bottom rests
 clearly above the floor stands on something, so the scene has a surface at that height (no static tool can be
 named from the dough alone: a skill that needs a named one is planned only with ``scene=NAME``).
-:func:`scene_fit` says which skills a scene allows (:meth:`pasta.core.SceneNeeds.unmet`).
+:func:`scene_fit` says which skills a scene allows (:meth:`pasta.core.SceneNeeds.unmet`); :func:`standing_tool` is the
+one lookup of a registered tool's stand pose (tasks stand their static tools with it, skills find the board).
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ import numpy as np
 from pasta.core import ConfigError, Scene
 from pasta.core.errors import did_you_mean
 
-__all__ = ["AUTO", "RAISED", "detect_scene", "floor_height", "resolve_scene", "scene_fit", "scene_from_setting"]
+__all__ = ["AUTO", "RAISED", "detect_scene", "floor_height", "resolve_scene", "scene_fit", "scene_from_setting",
+           "standing_tool"]
 
 #: ``scene=auto``: detect the surfaces from the clouds
 AUTO = "auto"
@@ -104,6 +106,24 @@ def scene_fit(names: Sequence[str], scene: Scene, skills: Any = None) -> dict[st
         if reasons:
             unmet[name] = reasons
     return unmet
+
+
+def standing_tool(name: str, plugins: Any = None) -> Any:
+    """The registered :class:`~pasta.core.ToolSpec` ``name``, which must have a stand pose (``spec.stand`` (3,),
+    its top ``spec.stand_top``): how a task stands its static tools and how a skill or task finds a tool another
+    plugin registers (the raised board) without importing that plugin.
+
+    Raises:
+        ConfigError: no plugin registers ``name`` (with the registered tools), or it has no stand pose.
+    """
+    tools = _tools(plugins)
+    if name not in tools:
+        raise ConfigError(f"tool '{name}' is not registered{did_you_mean(name, tools.names())}; "
+                          f"registered tools: {', '.join(tools.names()) or 'none'}")
+    spec = tools.spec(name)
+    if spec.stand is None:
+        raise ConfigError(f"tool '{name}' ({tools.info(name).origin}) has no stand pose (ToolSpec.stand)")
+    return spec
 
 
 def _tools(plugins: Any) -> Any:
