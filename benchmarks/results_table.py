@@ -89,7 +89,7 @@ def other_weights(summary: dict) -> list[str]:
     ``model.safetensors``); ``["unrecorded"]`` for a row made before rows recorded their weights (2026-12-05, when the
     shipped cost model was retrained). Oracle and Flat 3D rows are left out (the scene-level models did not change)."""
     from pasta.io.checkpoint import weights_digest
-    from pasta.weights import ROOT
+    from pasta.weights import ROOT, module_dir
 
     if summary.get("method") in ("oracle", "flat"):
         return []
@@ -106,7 +106,7 @@ def other_weights(summary: dict) -> list[str]:
     root = local(config.get("models") or str(ROOT))
     where = {"encoder": local(config["encoder"]["weights"]), "cost": local(config["cost_model"]["weights"])}
     return sorted(name for name, digest in recorded.items()
-                  if weights_digest(where.get(name, root / name)) != digest)
+                  if weights_digest(where.get(name, module_dir(root, name))) != digest)
 
 
 def outside_scene(summary: dict) -> list[str]:

@@ -136,14 +136,15 @@ class Session:
         ``model.safetensors`` (``encoder``, ``cost``, ``feasibility/<skill>``, ``policy/<skill>``): a result row
         then says which weights made it, and a row made with weights since replaced can be told apart."""
         from pasta.io.checkpoint import weights_digest
+        from pasta.weights import module_dir
 
         if self.method in ("oracle", "flat"):
             return {}
         dirs = {"encoder": self.cfg.encoder.weights, "cost": self.cfg.cost_model.weights}
         for sk in self.skills:
-            dirs[f"feasibility/{sk.name}"] = self.models / "feasibility" / sk.name
+            dirs[f"feasibility/{sk.name}"] = module_dir(self.models, f"feasibility/{sk.name}")
             if self.exe.controller == "learned":
-                dirs[f"policy/{sk.name}"] = self.models / "policy" / sk.name
+                dirs[f"policy/{sk.name}"] = module_dir(self.models, f"policy/{sk.name}")
         return {name: digest for name, digest in ((n, weights_digest(d)) for n, d in dirs.items()) if digest}
 
     def feasibility_training(self) -> dict[str, dict[str, Any]]:
@@ -283,9 +284,10 @@ def build_session(task: str | None = None, overrides: Sequence[str] = (), *, plu
     if exe.controller == "learned":
         from pasta.policy import POLICY_DIR
         from pasta.policy.learned import load_policy
+        from pasta.weights import module_dir
 
         for s in chosen:
-            load_policy(root / POLICY_DIR / s.name, s, device=str(cfg.device))
+            load_policy(module_dir(root, f"{POLICY_DIR}/{s.name}"), s, device=str(cfg.device))
     if cfg.method == "flat":
         from pasta.nn.flat import load_flat
 

@@ -170,8 +170,7 @@ def _missing(cls: type[Skill], root: Path, *, policy: bool, flat: bool) -> list[
     from pasta.io.checkpoint import checkpoint_exists
     from pasta.nn import FEASIBILITY_DIR
     from pasta.policy import POLICY_DIR
-
-    from pasta.weights import train_into
+    from pasta.weights import module_dir, train_into
 
     name = cls.spec.name
     out, then = train_into(root)
@@ -184,12 +183,12 @@ def _missing(cls: type[Skill], root: Path, *, policy: bool, flat: bool) -> list[
             needs.append(f"Flat 3D feasibility network ({where}): train with "
                          f"{flat_hint('feasibility', Path(out) / 'flat', name)}{then}")
     elif needs_feasibility_network(cls):
-        where = root / FEASIBILITY_DIR / name
+        where = module_dir(root, f"{FEASIBILITY_DIR}/{name}")
         if not checkpoint_exists(where):
             needs.append(f"feasibility network ({where}): train with "
                          f"`pasta train feasibility data=DIR out={out} skill={name}`{then}")
     if policy:
-        where = root / POLICY_DIR / name
+        where = module_dir(root, f"{POLICY_DIR}/{name}")
         if not checkpoint_exists(where):
             needs.append(f"policy ({where}): train with `pasta train policy data=DIR out={out} skill={name}`{then}")
     return needs

@@ -43,17 +43,19 @@ def load_feasibility(
 
 
 def attach_feasibility(skills: Iterable[Any], root: str | Path, *, latent_dim: int | None = None, strict: bool = True) -> list[str]:
-    """Attach ``root/feasibility/<skill>`` to every skill; return the names attached.
+    """Attach ``root/feasibility/<skill>`` (or the shipped one, :func:`pasta.weights.module_dir`) to every skill;
+    return the names attached.
 
     With ``strict=False`` skills without a trained network are skipped; otherwise they raise
     :class:`~pasta.core.errors.MissingComponentError` with the training command.
     """
     from pasta.core.errors import MissingComponentError
+    from pasta.weights import module_dir
 
     attached = []
     for skill in skills:
         try:
-            model = load_feasibility(Path(root) / FEASIBILITY_DIR / skill.name, skill=skill.name, n_in=skill.n_in,
+            model = load_feasibility(module_dir(root, f"{FEASIBILITY_DIR}/{skill.name}"), skill=skill.name, n_in=skill.n_in,
                                      n_out=skill.n_out, latent_dim=latent_dim)
         except MissingComponentError:
             if strict:

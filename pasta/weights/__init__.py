@@ -42,13 +42,21 @@ def weight_overrides(root: str | Path, given: list[str]) -> list[str]:
 
 
 def module_dir(root: str | Path, sub: str) -> Path:
-    """``ROOT/sub`` when it holds a trained module, else the shipped ``sub`` when that does: a models root that
-    trains only a new skill's feasibility (and policy) plans with the shipped VAE and cost, copying nothing.
-    Otherwise ``ROOT/sub`` (so a missing module is named where the user put it)."""
+    """Where the module ``sub`` (``vae``, ``cost``, ``feasibility/<skill>``, ``policy/<skill>``) of models root ``root``
+    is: ``ROOT/sub`` when it holds a trained module, else the shipped ``sub`` when that does, so a root that trains
+    only a new skill (its feasibility, its policy) plans with the shipped VAE, cost and skills, copying nothing.
+    Networks that read latents belong to the VAE they were trained on: a root with a VAE of its own never borrows
+    the shipped cost or skills. Otherwise ``ROOT/sub`` (so a missing module is named where the user put it)."""
     own = Path(root) / sub
-    if (own / "model.safetensors").is_file() or not (ROOT / sub / "model.safetensors").is_file():
+    if _trained(own) or not _trained(ROOT / sub):
+        return own
+    if sub != "vae" and _trained(Path(root) / "vae"):
         return own
     return ROOT / sub
+
+
+def _trained(directory: Path) -> bool:
+    return (directory / "model.safetensors").is_file()
 
 
 def train_into(root: str | Path) -> tuple[str, str]:

@@ -83,8 +83,9 @@ def test_session_skills_choose_the_set_and_the_task_chain_must_fit(tmp_path, cap
     with pytest.raises(ConfigError, match=f"'pusj' is not a registered skill; did you mean 'push'.*registered skills: "
                                           f"{', '.join(known)}$"):
         build_session("crs", skills="cut,pusj,roll")
-    # a models root where roll has no feasibility network: left out with one warning line, so crs cannot run
-    for rel in ("feasibility/cut", "feasibility/push"):
+    # a models root of its own (its own VAE, so nothing shipped is borrowed) where roll has no feasibility network:
+    # left out with one warning line, so crs cannot run
+    for rel in ("vae", "feasibility/cut", "feasibility/push"):
         (tmp_path / rel).mkdir(parents=True)
         (tmp_path / rel / "model.safetensors").write_text("")
         (tmp_path / rel / "model.json").write_text("")

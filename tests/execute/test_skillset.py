@@ -38,7 +38,7 @@ def test_shipped_weights_cover_the_builtin_skills():
 
 
 def test_skills_without_weights_are_left_out_with_one_warning_line(tmp_path):
-    root = models(tmp_path, "feasibility/cut", "feasibility/push")
+    root = models(tmp_path, "vae", "feasibility/cut", "feasibility/push")  # its own VAE: nothing shipped is borrowed
     choice = choose_skills(None, root)
     left = others("cut", "push")  # roll, and any other registered skill
     assert choice.names == ["cut", "push"] and list(choice.left_out) == left and "roll" in left
@@ -50,7 +50,7 @@ def test_skills_without_weights_are_left_out_with_one_warning_line(tmp_path):
 
 
 def test_naming_a_skill_without_weights_is_an_error(tmp_path):
-    root = models(tmp_path, "feasibility/cut", "feasibility/push")
+    root = models(tmp_path, "vae", "feasibility/cut", "feasibility/push")
     with pytest.raises(MissingComponentError, match=r"skill 'roll' has no feasibility network .*skill=roll"):
         choose_skills("cut,roll", root)
     assert choose_skills("push,cut", root).names == ["push", "cut"]  # the given order
@@ -68,7 +68,7 @@ def test_unknown_or_repeated_names_list_the_known_skills():
 
 
 def test_learned_controllers_need_policies(tmp_path):
-    root = models(tmp_path, "feasibility/cut", "feasibility/push", "feasibility/roll", "policy/cut")
+    root = models(tmp_path, "vae", "feasibility/cut", "feasibility/push", "feasibility/roll", "policy/cut")
     choice = choose_skills(None, root, policy=True)
     assert choice.names == ["cut"] and set(choice.left_out) == set(others("cut"))
     assert {"push", "roll"} <= set(choice.left_out)
@@ -82,18 +82,18 @@ def test_flat_method_looks_under_flat(tmp_path):
 
 def test_skills_computing_their_own_feasibility_need_no_network(tmp_path):
     plugins = discover(extra={"analytic": AnalyticPlugin()})
-    choice = choose_skills(None, tmp_path, plugins=plugins)
+    choice = choose_skills(None, models(tmp_path, "vae"), plugins=plugins)
     left = {name for name in plugins.skills.names() if name not in ("flatten", "move", "split")}
     assert choice.names == ["flatten", "move", "split"] and set(choice.left_out) == left and set(BUILTIN) <= left
 
 
 def test_no_skill_with_weights_is_an_error(tmp_path):
     with pytest.raises(MissingComponentError, match=f"no registered skill has trained weights under {tmp_path}"):
-        choose_skills(None, tmp_path)
+        choose_skills(None, models(tmp_path, "vae"))
 
 
 def test_require_says_why_a_needed_skill_is_missing(tmp_path):
-    choice = choose_skills(None, models(tmp_path, "feasibility/cut", "feasibility/push"))
+    choice = choose_skills(None, models(tmp_path, "vae", "feasibility/cut", "feasibility/push"))
     with pytest.raises(ConfigError, match=r"task 'crs' needs the skills cut, push, roll; left out: 'roll': feasibility network"):
         choice.require(("cut", "push", "roll"), "task 'crs'")
     given = choose_skills("cut", tmp_path)
@@ -111,11 +111,21 @@ def test_no_message_suggests_training_into_the_installed_package(tmp_path):
     assert f"out={ROOT}" not in line and "out=models" in line and "(then run with models=models)" in line
 
 
-def test_a_root_that_trains_only_a_new_skill_uses_the_shipped_vae_and_cost(tmp_path):
+def test_a_root_that_trains_only_a_new_skill_uses_the_shipped_vae_cost_and_skills(tmp_path):
     from pasta.weights import module_dir, weight_overrides
 
-    root = models(tmp_path, "feasibility/press")
+    root = models(tmp_path, "feasibility/press", "feasibility/cut")
     assert module_dir(root, "vae") == ROOT / "vae" and module_dir(root, "cost") == ROOT / "cost"
     assert weight_overrides(root, []) == [f"encoder.weights={ROOT / 'vae'}", f"cost_model.weights={ROOT / 'cost'}"]
+    # its own networks win; the skills it did not train come from the shipped weights
+    assert module_dir(root, "feasibility/cut") == root / "feasibility" / "cut"
+    assert module_dir(root, "feasibility/roll") == ROOT / "feasibility" / "roll"
+    assert module_dir(root, "policy/roll") == ROOT / "policy" / "roll"
+    assert module_dir(root, "feasibility/press") == root / "feasibility" / "press"
+    assert module_dir(root, "feasibility/nothing") == root / "feasibility" / "nothing"  # named where the user looks
+    choice = choose_skills(None, root)
+    assert set(BUILTIN) <= set(choice.names) and "cut" in choice.names
+    # networks that read latents belong to their VAE: a root with its own VAE borrows no cost and no skill
     own = models(tmp_path / "own", "vae", "feasibility/press")
-    assert module_dir(own, "vae") == own / "vae" and module_dir(own, "cost") == ROOT / "cost"
+    assert module_dir(own, "vae") == own / "vae" and module_dir(own, "cost") == own / "cost"
+    assert module_dir(own, "feasibility/roll") == own / "feasibility" / "roll"
