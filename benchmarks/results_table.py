@@ -1,12 +1,15 @@
-"""The README's results tables, generated from the ``pasta eval`` summaries in docs/results (markdown).
+"""The results tables, generated from the ``pasta eval`` summaries in docs/results (markdown).
 
     python benchmarks/results_table.py                       # print them (from docs/results)
-    python benchmarks/results_table.py --write README.md     # replace them in README.md, between the markers
+    python benchmarks/results_table.py --write               # replace them in their files, between the markers
 
-Every row is one ``pasta eval ... num=20`` on the fixed test configs (seeds 1000-1019), whose summary
-``<file>.json`` lies in docs/results with its per-episode rows ``<file>.jsonl`` (the file names are the ones
-``pasta eval`` writes for the settings given). tests/test_readme_results.py checks that README.md holds
-exactly what this prints, so the README cannot drift from the results it cites.
+Three blocks, each between its markers in one file (:data:`BLOCKS`): ``results`` (README.md: per task, then the paper's ablations
+and baselines), ``disturbances`` (docs/policies.md: the closed loop under disturbance) and ``plugin``
+(docs/planning.md: every task with the example third-party plugin installed). Every row is one
+``pasta eval ... num=20`` on the fixed test configs (seeds 1000-1019), whose summary ``<file>.json`` lies in
+docs/results with its per-episode rows ``<file>.jsonl`` (the file names are the ones ``pasta eval`` writes for the
+settings given). tests/test_readme_results.py checks that the files hold exactly what this prints, so the docs
+cannot drift from the results they cite.
 """
 
 from __future__ import annotations
@@ -18,7 +21,14 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
-START, END = "<!-- results:start (python benchmarks/results_table.py) -->", "<!-- results:end -->"
+
+
+def markers(block: str) -> tuple[str, str]:
+    """The start and end markers of ``block`` in the file that shows it."""
+    return f"<!-- {block}:start (python benchmarks/results_table.py) -->", f"<!-- {block}:end -->"
+
+
+START, END = markers("results")
 
 #: (task, the paper's PASTA result: normalised improvement and success on its 5 configs, its planning seconds)
 TASKS = (
@@ -89,7 +99,8 @@ def other_weights(summary: dict) -> list[str]:
     ``model.safetensors``); ``["unrecorded"]`` for a row made before rows recorded their weights (2026-12-05, when the
     shipped cost model was retrained). Oracle and Flat 3D rows are left out (the scene-level models did not change)."""
     from pasta.io.checkpoint import weights_digest
-    from pasta.weights import ROOT, module_dir
+    from pasta.weights import ROOT as SHIPPED
+    from pasta.weights import module_dir
 
     if summary.get("method") in ("oracle", "flat"):
         return []
@@ -101,9 +112,11 @@ def other_weights(summary: dict) -> list[str]:
     def local(path: str) -> Path:  # a path of the machine that made the row, under this checkout's shipped weights
         marker = "pasta/weights/"
         text = str(path)
-        return ROOT / text.split(marker, 1)[1] if marker in text and not Path(text).exists() else Path(text)
+        if marker in text and not Path(text).exists():
+            return SHIPPED / text.split(marker, 1)[1]
+        return Path(text) if Path(text).is_absolute() else ROOT / text  # relative: to the checkout
 
-    root = local(config.get("models") or str(ROOT))
+    root = local(config.get("models") or str(SHIPPED))
     where = {"encoder": local(config["encoder"]["weights"]), "cost": local(config["cost_model"]["weights"])}
     return sorted(name for name, digest in recorded.items()
                   if weights_digest(where.get(name, module_dir(root, name))) != digest)
@@ -132,7 +145,7 @@ def _check(summary: dict | None, name: str) -> None:
 
 
 def table(results: Path = RESULTS) -> str:
-    """The two markdown tables (per task, then the paper's ablations and baselines) with their notes."""
+    """The README's block: per task (heuristic, learned, paper), then the paper's ablations and baselines."""
     lines = ["| task | PASTA, heuristic controllers | PASTA, learned policies | paper (PASTA) | plan s, ours / paper |",
              "|---|---:|---:|---:|---:|"]
     for task, paper, paper_s in TASKS:
@@ -148,8 +161,19 @@ def table(results: Path = RESULTS) -> str:
         summary = _summary(results, name)
         _check(summary, name)
         lines.append(f"| {task} | {what} | {_cell(summary)} | {_paper(paper)} | `{settings}` |")
-    lines += ["", "| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
-              "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
+    lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs (seeds 1000-1019); "
+              "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
+              "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
+              "`execute.controller=learned`); its per-episode rows are in `docs/results/`. Plan s: mean planning "
+              "seconds per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to "
+              "four runs shared (`benchmarks/bench_planner.py` times the planner alone)."]
+    return _footnoted(lines)
+
+
+def disturbance_table(results: Path = RESULTS) -> str:
+    """docs/policies.md's block: crs and cut_rearrange under each disturbance, open and closed loop."""
+    lines = ["| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
+             "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
     for task in LOOP_TASKS:
         for kind in DISTURBANCES:
             cells = []
@@ -160,39 +184,110 @@ def table(results: Path = RESULTS) -> str:
                     _check(summary, name)
                     cells.append(_cell(summary))
             lines.append(f"| {task} | {kind or 'none'} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} |")
-    lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs (seeds 1000-1019); "
-              "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
-              "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
-              "`execute.controller=learned`; under a disturbance: `disturb=KIND`, closed loop: `execute.loop=closed`); its "
-              "per-episode rows are in `docs/results/`. Plan s: mean planning seconds "
-              "per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to four runs "
-              "shared (`benchmarks/bench_planner.py` times the planner alone)."]
-    if any(OUTSIDE_SCENE in line for line in lines[:-1]):
+    lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs: "
+              "`pasta eval task=T num=20 disturb=KIND` (closed loop: `execute.loop=closed`; learned policies: "
+              "`execute.controller=learned`); per-episode rows in `docs/results/`."]
+    return _footnoted(lines)
+
+
+#: the example third-party plugin package, its skill, and the models root (in the checkout) that holds its trained
+#: networks only: the other skills, the VAE and the cost come from the shipped weights (pasta.weights.module_dir)
+PLUGIN = ("pasta-pinch", "pinch", "examples/pasta-pinch/pinch_weights")
+
+
+def plugin_name(task: str, *, learned: bool) -> str:
+    """The ``pasta eval`` result name of ``task`` with the plugin's models root (``models=...``)."""
+    return f"{task}_pasta" + ("_learned" if learned else "") + f"_models-{Path(PLUGIN[2]).name.replace('_', '-')}"
+
+
+def plugin_names() -> list[str]:
+    return [plugin_name(task, learned=learned) for task, _, _ in TASKS for learned in (False, True)]
+
+
+def plugin_table(results: Path = RESULTS) -> str:
+    """docs/planning.md's block: every task with and without the example plugin installed (its skill a candidate
+    in every plan), and how many episodes planned it."""
+    package, skill, root = PLUGIN
+    lines = [f"| task | heuristic | + {package} | learned | + {package} | episodes planning {skill} |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for task, _, _ in TASKS:
+        cells, used = [], []
+        for learned in (False, True):
+            shipped = _summary(results, f"{task}_pasta" + ("_learned" if learned else ""))
+            name = plugin_name(task, learned=learned)
+            summary = _summary(results, name)
+            _check(summary, name)
+            cells += [_cell(shipped), _plugin_cell(summary)]
+            if summary is not None:
+                rows = _rows(results, name)
+                used.append(str(sum(skill in row["skeleton"] for row in rows)))
+        lines.append(f"| {task} | {' | '.join(cells)} | {' / '.join(used) or 'not run'} |")
+    lines += ["", f"`pip install -e examples/{package}`, then `pasta eval task=T num=20 models={root}` (learned: "
+              f"`execute.controller=learned`): that root holds only the plugin's trained networks (its feasibility "
+              f"and policy), everything else comes from the shipped weights. Episodes planning {skill}: heuristic / "
+              "learned."]
+    return _footnoted(lines)
+
+
+def _plugin_cell(summary: dict | None) -> str:
+    """A row of the plugin table: stale only through the scene or the shipped weights (its own are the plugin's)."""
+    if summary is None:
+        return "not run"
+    skill = PLUGIN[1]
+    weights = {k: v for k, v in (summary.get("weights") or {}).items() if not k.endswith(f"/{skill}")}
+    own = {**summary, "weights": weights or None}
+    return _cell(own)
+
+
+def _rows(results: Path, name: str) -> list[dict]:
+    return [json.loads(line) for line in (results / f"{name}.jsonl").read_text().splitlines() if line.strip()]
+
+
+def _footnoted(lines: list[str]) -> str:
+    if any(OUTSIDE_SCENE in line for line in lines):
         lines += ["", f"{OUTSIDE_SCENE} Made by an earlier pasta, to be re-run: with the cost model shipped before "
                   "2026-12-05 (which could not tell heights apart, docs/planning.md), and in tasks without the board "
                   "with the lift among the candidates (the scene now leaves it out, docs/planning.md, \"The scene\")."]
     return "\n".join(lines) + "\n"
 
 
-def replace_in(text: str, body: str) -> str:
-    """``text`` with everything between :data:`START` and :data:`END` replaced by ``body``."""
-    if START not in text or END not in text:
-        raise SystemExit(f"the file has no {START} ... {END} markers")
-    head, _, rest = text.partition(START)
-    _, _, tail = rest.partition(END)
-    return f"{head}{START}\n{body}{END}{tail}"
+#: each block: the file that shows it (relative to the checkout) and what prints it
+BLOCKS = {"results": ("README.md", table), "disturbances": ("docs/policies.md", disturbance_table),
+          "plugin": ("docs/planning.md", plugin_table)}
+
+
+def shown(block: str) -> str:
+    """What ``block``'s file holds between its markers now."""
+    start, end = markers(block)
+    text = (ROOT / BLOCKS[block][0]).read_text()
+    if start not in text or end not in text:
+        raise SystemExit(f"{BLOCKS[block][0]} has no {start} ... {end} markers")
+    return text.split(start, 1)[1].split(end, 1)[0].lstrip("\n")
+
+
+def replace_in(text: str, body: str, block: str = "results") -> str:
+    """``text`` with everything between ``block``'s markers replaced by ``body``."""
+    start, end = markers(block)
+    if start not in text or end not in text:
+        raise SystemExit(f"the file has no {start} ... {end} markers")
+    head, _, rest = text.partition(start)
+    _, _, tail = rest.partition(end)
+    return f"{head}{start}\n{body}{end}{tail}"
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("results", nargs="?", type=Path, default=RESULTS, help="folder of pasta eval summaries")
-    ap.add_argument("--write", type=Path, help="replace the table between the markers of this file (README.md)")
+    ap.add_argument("--write", action="store_true",
+                    help="replace every block between its markers in its file (" + ", ".join(
+                        f"{block}: {file}" for block, (file, _) in BLOCKS.items()) + ")")
     args = ap.parse_args(argv)
-    body = table(args.results)
-    if args.write:
-        args.write.write_text(replace_in(args.write.read_text(), body))
-    else:
-        sys.stdout.write(body)
+    bodies = {block: make(args.results) for block, (_, make) in BLOCKS.items()}
+    for block, (file, _) in BLOCKS.items() if args.write else ():
+        path = ROOT / file
+        path.write_text(replace_in(path.read_text(), bodies[block], block))
+    if not args.write:
+        sys.stdout.write("\n".join(f"{markers(block)[0]}\n{body}" for block, body in bodies.items()))
     return 0
 
 

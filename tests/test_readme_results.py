@@ -1,5 +1,5 @@
-"""The README's results tables are exactly what benchmarks/results_table.py generates from docs/results, and every
-row it cites is a 20-config test-set summary with its per-episode rows beside it."""
+"""The results tables (README.md, docs/policies.md, docs/planning.md) are exactly what benchmarks/results_table.py
+generates from docs/results, and every row they cite is a 20-config test-set summary with its per-episode rows."""
 
 from __future__ import annotations
 
@@ -17,21 +17,23 @@ def _script():
     return module
 
 
-def test_readme_table_is_the_generated_one():
+def test_every_results_block_is_the_generated_one():
     rt = _script()
-    readme = (ROOT / "README.md").read_text()
-    assert rt.START in readme and rt.END in readme, "README.md lost its results markers"
-    shown = readme.split(rt.START, 1)[1].split(rt.END, 1)[0].lstrip("\n")
-    assert shown == rt.table(), "README.md's results differ from `python benchmarks/results_table.py`: run it with " \
-                                "--write README.md"
+    assert set(rt.BLOCKS) == {"results", "disturbances", "plugin"} and rt.BLOCKS["results"][0] == "README.md"
+    for block, (file, make) in rt.BLOCKS.items():
+        assert rt.shown(block) == make(), f"{file}'s {block} table differs from `python benchmarks/results_table.py`: " \
+                                          "run it with --write"
+
+
+def _cited(rt):
+    names = [f"{task}_pasta{suffix}" for task, _, _ in rt.TASKS for suffix in ("", "_learned")]
+    names += [name for _, _, name, _, _ in rt.ABLATIONS] + rt.loop_names() + rt.plugin_names()
+    return list(dict.fromkeys(names))
 
 
 def test_every_cited_row_has_its_episodes():
     rt = _script()
-    names = [f"{task}_pasta{suffix}" for task, _, _ in rt.TASKS for suffix in ("", "_learned")]
-    names += [name for _, _, name, _, _ in rt.ABLATIONS]
-    names += [name for name in rt.loop_names() if name not in names]
-    cited = [name for name in names if (rt.RESULTS / f"{name}.json").exists()]  # the others read "not run"
+    cited = [name for name in _cited(rt) if (rt.RESULTS / f"{name}.json").exists()]  # the others read "not run"
     assert {f"{task}_pasta" for task, _, _ in rt.TASKS} <= set(cited), "every task has its heuristic row"
     for name in cited:
         summary = json.loads((rt.RESULTS / f"{name}.json").read_text())
@@ -76,10 +78,8 @@ def test_no_episode_of_a_current_row_plans_a_skill_its_scene_leaves_out():
     from pasta.tasks.scene import floor_height, resolve_scene, scene_fit
 
     rt = _script()
-    names = [f"{task}_pasta{suffix}" for task, _, _ in rt.TASKS for suffix in ("", "_learned")]
-    names += [name for _, _, name, _, _ in rt.ABLATIONS] + rt.loop_names()
     checked = 0
-    for name in dict.fromkeys(names):
+    for name in _cited(rt):
         if not (rt.RESULTS / f"{name}.json").exists():
             continue
         summary = json.loads((rt.RESULTS / f"{name}.json").read_text())
@@ -92,3 +92,8 @@ def test_no_episode_of_a_current_row_plans_a_skill_its_scene_leaves_out():
                 assert not scene_fit(row["skeleton"], scene), (name, row["seed"], row["skeleton"])
                 checked += 1
     assert checked >= 40  # at least the re-run crs and cut_rearrange rows
+
+
+def test_the_readme_stays_a_users_document_of_at_most_250_lines():
+    lines = (ROOT / "README.md").read_text().splitlines()
+    assert len(lines) <= 250, f"README.md has {len(lines)} lines: history goes to CHANGELOG.md, details to docs/"
