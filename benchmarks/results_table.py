@@ -3,9 +3,9 @@
     python benchmarks/results_table.py                       # print them (from docs/results)
     python benchmarks/results_table.py --write               # replace them in their files, between the markers
 
-Three blocks, each between its markers in one file (:data:`BLOCKS`): ``results`` (README.md: per task, then the paper's ablations
-and baselines), ``disturbances`` (docs/policies.md: the closed loop under disturbance) and ``plugin``
-(docs/planning.md: every task with the example third-party plugin installed). Every row is one
+Two blocks, each between its markers in one file (:data:`BLOCKS`): ``results`` (README.md: per task, the paper's
+ablations and baselines, the closed loop under disturbance) and ``plugin`` (docs/planning.md: every task with the
+example third-party plugin installed). Every row is one
 ``pasta eval ... num=20`` on the fixed test configs (seeds 1000-1019), whose summary ``<file>.json`` lies in
 docs/results with its per-episode rows ``<file>.jsonl`` (the file names are the ones ``pasta eval`` writes for the
 settings given). tests/test_readme_results.py checks that the files hold exactly what this prints, so the docs
@@ -145,7 +145,8 @@ def _check(summary: dict | None, name: str) -> None:
 
 
 def table(results: Path = RESULTS) -> str:
-    """The README's block: per task (heuristic, learned, paper), then the paper's ablations and baselines."""
+    """The README's block: per task (heuristic, learned, paper), the paper's ablations and baselines, then the
+    closed loop under disturbance (open and closed, heuristic and learned)."""
     lines = ["| task | PASTA, heuristic controllers | PASTA, learned policies | paper (PASTA) | plan s, ours / paper |",
              "|---|---:|---:|---:|---:|"]
     for task, paper, paper_s in TASKS:
@@ -161,19 +162,8 @@ def table(results: Path = RESULTS) -> str:
         summary = _summary(results, name)
         _check(summary, name)
         lines.append(f"| {task} | {what} | {_cell(summary)} | {_paper(paper)} | `{settings}` |")
-    lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs (seeds 1000-1019); "
-              "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
-              "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
-              "`execute.controller=learned`); its per-episode rows are in `docs/results/`. Plan s: mean planning "
-              "seconds per episode on one CPU thread, as each row's run measured it, on a 2-core machine that up to "
-              "four runs shared (`benchmarks/bench_planner.py` times the planner alone)."]
-    return _footnoted(lines)
-
-
-def disturbance_table(results: Path = RESULTS) -> str:
-    """docs/policies.md's block: crs and cut_rearrange under each disturbance, open and closed loop."""
-    lines = ["| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
-             "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
+    lines += ["", "| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
+              "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
     for task in LOOP_TASKS:
         for kind in DISTURBANCES:
             cells = []
@@ -184,9 +174,13 @@ def disturbance_table(results: Path = RESULTS) -> str:
                     _check(summary, name)
                     cells.append(_cell(summary))
             lines.append(f"| {task} | {kind or 'none'} | {cells[0]} | {cells[1]} | {cells[2]} | {cells[3]} |")
-    lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs: "
-              "`pasta eval task=T num=20 disturb=KIND` (closed loop: `execute.loop=closed`; learned policies: "
-              "`execute.controller=learned`); per-episode rows in `docs/results/`."]
+    lines += ["", "Normalised improvement (mean ± std) / success rate on the 20 fixed test configs (seeds 1000-1019); "
+              "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
+              "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
+              "`execute.controller=learned`; under a disturbance: `disturb=KIND`, closed loop: `execute.loop=closed`); "
+              "its per-episode rows are in `docs/results/`. Plan s: mean planning seconds per episode on one CPU "
+              "thread, as each row's run measured it, on a 2-core machine that up to four runs shared "
+              "(`benchmarks/bench_planner.py` times the planner alone)."]
     return _footnoted(lines)
 
 
@@ -252,8 +246,7 @@ def _footnoted(lines: list[str]) -> str:
 
 
 #: each block: the file that shows it (relative to the checkout) and what prints it
-BLOCKS = {"results": ("README.md", table), "disturbances": ("docs/policies.md", disturbance_table),
-          "plugin": ("docs/planning.md", plugin_table)}
+BLOCKS = {"results": ("README.md", table), "plugin": ("docs/planning.md", plugin_table)}
 
 
 def shown(block: str) -> str:

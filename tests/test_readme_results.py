@@ -1,4 +1,4 @@
-"""The results tables (README.md, docs/policies.md, docs/planning.md) are exactly what benchmarks/results_table.py
+"""The results tables (README.md, docs/planning.md) are exactly what benchmarks/results_table.py
 generates from docs/results, and every row they cite is a 20-config test-set summary with its per-episode rows."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ def _script():
 
 def test_every_results_block_is_the_generated_one():
     rt = _script()
-    assert set(rt.BLOCKS) == {"results", "disturbances", "plugin"} and rt.BLOCKS["results"][0] == "README.md"
+    assert set(rt.BLOCKS) == {"results", "plugin"} and rt.BLOCKS["results"][0] == "README.md"
     for block, (file, make) in rt.BLOCKS.items():
         assert rt.shown(block) == make(), f"{file}'s {block} table differs from `python benchmarks/results_table.py`: " \
                                           "run it with --write"
