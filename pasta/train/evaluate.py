@@ -240,10 +240,23 @@ class EvaluateConfig(SkillRunSettings):
         check_threads(self.threads, "threads")
 
     def skill_names(self) -> list[str]:
-        """``skills=`` as names (empty: every registered skill that can make demonstrations)."""
+        """``skills=`` as names (empty: every registered skill that can make demonstrations and, when the learned
+        controller is scored, has a trained policy: an installed plugin without one is left out)."""
         from pasta.demos import demo_skills
+        from pasta.io.checkpoint import checkpoint_exists
 
-        return [s.strip() for s in str(self.skills).split(",") if s.strip()] or demo_skills()
+        given = [s.strip() for s in str(self.skills).split(",") if s.strip()]
+        if given or "learned" not in self.controller_names():
+            return given or demo_skills()
+        return [name for name in demo_skills() if checkpoint_exists(self.policy_dir(name))]
+
+    def policy_dir(self, skill: str) -> Any:
+        """Where ``skill``'s policy is: under ``models=`` or, where that root has none, the shipped one
+        (:func:`pasta.weights.module_dir`)."""
+        from pasta.policy import POLICY_DIR
+        from pasta.weights import models_root, module_dir
+
+        return module_dir(models_root(self.models), f"{POLICY_DIR}/{skill}")
 
     def controller_names(self) -> list[str]:
         return [c.strip() for c in str(self.controllers).split(",") if c.strip()]
@@ -258,8 +271,6 @@ def evaluate_config(overrides: dict[str, Any] | None = None) -> EvaluateConfig:
     from pasta.core.errors import did_you_mean
     from pasta.demos.scene import check_demo_skill, check_variant
     from pasta.io.checkpoint import checkpoint_exists
-    from pasta.policy import POLICY_DIR
-    from pasta.weights import models_root
 
     cfg = build(EvaluateConfig, dict(overrides or {}), command="pasta train evaluate")
     controllers = cfg.controller_names()
@@ -271,7 +282,7 @@ def evaluate_config(overrides: dict[str, Any] | None = None) -> EvaluateConfig:
                               f"choose of {', '.join(CONTROLLERS)}")
     for name in cfg.skill_names():
         check_variant(check_demo_skill(name), cfg.scene)
-        policy = models_root(cfg.models) / POLICY_DIR / name
+        policy = cfg.policy_dir(name)
         if "learned" in controllers and not checkpoint_exists(policy):
             raise ConfigError(f"controllers=learned: no trained policy of {name} in {policy}; train it with "
                               f"`pasta train policy skill={name} data=DIR out=MODELS` and give models=MODELS")
@@ -286,14 +297,11 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
     (:func:`table` prints them as docs/policies.md does)."""
     from pasta.demos.generate import skill_config
     from pasta.plugins import get_plugins
-    from pasta.policy import POLICY_DIR
     from pasta.policy.learned import load_policy
     from pasta.train.loop import torch_threads
-    from pasta.weights import models_root
 
     cfg = evaluate_config(overrides)
     names, controllers = cfg.skill_names(), cfg.controller_names()
-    models = models_root(cfg.models)
     kw: dict[str, Any] = {k: getattr(cfg, k) for k in ("min_steps", "max_steps") if getattr(cfg, k) >= 0}
     if cfg.done_threshold >= 0:
         kw["done_threshold"] = cfg.done_threshold
@@ -304,7 +312,7 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
         for name in names:
             skill = get_plugins().skills.create(name, skill_config(name, cfg.scene))
             if "learned" in controllers:
-                load_policy(models / POLICY_DIR / name, skill, **kw)
+                load_policy(cfg.policy_dir(name), skill, **kw)
             results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, cfg.n, cfg.seed, scene=cfg.scene),
                                            controllers, learned_max_steps=cfg.learned_max_steps or None)
     if cfg.json:

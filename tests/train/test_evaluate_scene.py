@@ -61,3 +61,25 @@ def test_unknown_scene_names_the_known_ones():
     push = get_plugins().skills.create("push")
     with pytest.raises(ConfigError, match="wide"):
         make_configs(push, RecordingSim(), 1, seed=0, settle_steps=0, scene="wdie")
+
+
+def test_default_skills_are_those_with_a_policy(tmp_path):
+    """`pasta train evaluate` with no skills= scores the learned controller of every demo skill that has a policy
+    (under models=, or shipped where the root borrows: an installed plugin without one is left out); naming a skill
+    without one is an error that says how to train it."""
+    from pasta.demos import demo_skills
+    from pasta.train.evaluate import evaluate_config
+    from pasta.weights import ROOT
+
+    borrowing = evaluate_config({"models": str(tmp_path / "empty")})  # nothing of its own: the shipped policies serve
+    assert borrowing.policy_dir("cut") == ROOT / "policy" / "cut"
+    assert set(borrowing.skill_names()) == {name for name in demo_skills() if (ROOT / "policy" / name).is_dir()}
+    own = tmp_path / "own"  # a root with its own VAE borrows nothing: only its cut policy
+    for rel in ("vae", "policy/cut"):
+        (own / rel).mkdir(parents=True)
+        for name in ("model.safetensors", "model.json"):
+            (own / rel / name).write_text("")
+    assert evaluate_config({"models": str(own)}).skill_names() == ["cut"]
+    assert evaluate_config({"models": str(own), "controllers": "heuristic"}).skill_names() == demo_skills()
+    with pytest.raises(ConfigError, match="no trained policy of push in .*pasta train policy skill=push"):
+        evaluate_config({"models": str(own), "skills": "push"})
