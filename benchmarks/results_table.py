@@ -128,9 +128,12 @@ def outside_scene(summary: dict) -> list[str]:
     from pasta.tasks import get_task
     from pasta.tasks.scene import floor_height, resolve_scene, scene_fit
 
+    from pasta.plugins import get_plugins
+
     task = get_task(summary["task"])
     scene = resolve_scene(task.scene(), floor_height(int(summary["config"]["sim"]["n_grid"])))
-    return sorted(scene_fit(summary.get("skills") or [], scene))
+    registered = get_plugins().skills  # a plugin's skill is checked where the plugin is installed
+    return sorted(scene_fit([name for name in summary.get("skills") or [] if name in registered], scene))
 
 
 def _paper(paper: tuple[float, float] | None) -> str:
@@ -212,10 +215,8 @@ def plugin_table(results: Path = RESULTS) -> str:
             summary = _summary(results, name)
             _check(summary, name)
             cells += [_cell(shipped), _plugin_cell(summary)]
-            if summary is not None:
-                rows = _rows(results, name)
-                used.append(str(sum(skill in row["skeleton"] for row in rows)))
-        lines.append(f"| {task} | {' | '.join(cells)} | {' / '.join(used) or 'not run'} |")
+            used.append("-" if summary is None else str(sum(skill in row["skeleton"] for row in _rows(results, name))))
+        lines.append(f"| {task} | {' | '.join(cells)} | {'not run' if set(used) == {'-'} else ' / '.join(used)} |")
     lines += ["", f"`pip install -e examples/{package}`, then `pasta eval task=T num=20 models={root}` (learned: "
               f"`execute.controller=learned`): that root holds only the plugin's trained networks (its feasibility "
               f"and policy), everything else comes from the shipped weights. Episodes planning {skill}: heuristic / "
