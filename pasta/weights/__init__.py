@@ -43,10 +43,10 @@ def weight_overrides(root: str | Path, given: list[str]) -> list[str]:
 
 def module_dir(root: str | Path, sub: str) -> Path:
     """Where the module ``sub`` (``vae``, ``cost``, ``feasibility/<skill>``, ``policy/<skill>``) of models root ``root``
-    is: ``ROOT/sub`` when it holds a trained module, else the shipped ``sub`` when that does, so a root that trains
+    is: ``root/sub`` when it holds a trained module, else the shipped ``sub`` when that does, so a root that trains
     only a new skill (its feasibility, its policy) plans with the shipped VAE, cost and skills, copying nothing.
     Networks that read latents belong to the VAE they were trained on: a root with a VAE of its own never borrows
-    the shipped cost or skills. Otherwise ``ROOT/sub`` (so a missing module is named where the user put it)."""
+    the shipped cost or skills. Otherwise ``root/sub`` (so a missing module is named where the user put it)."""
     own = Path(root) / sub
     if _trained(own) or not _trained(ROOT / sub):
         return own
