@@ -62,8 +62,8 @@ DISTURBANCES = ("", "shift", "split", "merge", "lump", "noise")
 
 def loop_name(task: str, kind: str, *, learned: bool, closed: bool) -> str:
     """The ``pasta eval`` result name of ``task`` under disturbance ``kind``, open or closed loop."""
-    return (f"{task}_pasta" + ("_learned" if learned else "") + (f"_disturb-{kind}" if kind else "")
-            + ("_loop-closed" if closed else ""))
+    parts = (["learned"] if learned else []) + ([f"disturb-{kind}"] if kind else []) + (["loop-closed"] if closed else [])
+    return f"{task}_pasta" + "".join(f"_{part}" for part in sorted(parts))  # as pasta eval names it: parts sorted
 
 
 def loop_names() -> list[str]:
@@ -194,7 +194,8 @@ PLUGIN = ("pasta-pinch", "pinch", "examples/pasta-pinch/pinch_weights")
 
 def plugin_name(task: str, *, learned: bool) -> str:
     """The ``pasta eval`` result name of ``task`` with the plugin's models root (``models=...``)."""
-    return f"{task}_pasta" + ("_learned" if learned else "") + f"_models-{Path(PLUGIN[2]).name.replace('_', '-')}"
+    parts = (["learned"] if learned else []) + [f"models-{Path(PLUGIN[2]).name.replace('_', '-')}"]
+    return f"{task}_pasta" + "".join(f"_{part}" for part in sorted(parts))
 
 
 def plugin_names() -> list[str]:

@@ -84,7 +84,7 @@ UNNAMED = ("task", "threads", "device")
 
 
 def result_path(out: str | Path, cfg: Any, settings: list[str], split: str = "test") -> Path:
-    """``OUT/<task>_<method>[_learned][_<setting>...][_val].jsonl``: one file per set of settings.
+    """``OUT/<task>_<method>[_<setting>...][_val].jsonl``: one file per set of settings, the parts sorted.
 
     ``settings`` are the run-config items the user gave; each becomes a part of the name (``horizon=5`` ->
     ``_horizon5``, ``skills=cut,push`` -> ``_skills-cut-push``, ``task.distractors=4`` -> ``_distractors4``,
