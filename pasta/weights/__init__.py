@@ -28,8 +28,22 @@ _FILES = ("model.safetensors", "model.json", "metrics.json", "reset.safetensors"
 
 
 def models_root(models: str | Path | None = None) -> Path:
-    """The weights root to load from: ``models`` when given (a ``pasta train`` output), else the shipped one."""
-    return Path(models) if models not in (None, "") else ROOT
+    """The weights root to load from: ``models`` when given (a ``pasta train`` output), else the shipped one.
+
+    Raises:
+        ConfigError: ``models`` names no directory (a typo would otherwise load the shipped weights through
+            :func:`module_dir` without a word).
+    """
+    if models in (None, ""):
+        return ROOT
+    root = Path(models)
+    if not root.is_dir():
+        from pasta.core.errors import ConfigError
+
+        why = "is not a directory" if root.exists() else "the directory does not exist"
+        raise ConfigError(f"models={models}: {why} (a `pasta train ... out=DIR` root; leave models= out for the "
+                          "shipped weights)")
+    return root
 
 
 def weight_overrides(root: str | Path, given: list[str]) -> list[str]:

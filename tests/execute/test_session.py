@@ -18,7 +18,7 @@ def test_shipped_weights_cover_every_module_the_default_pipeline_loads():
     for rel in have:
         assert (ROOT / rel / "model.json").exists() and (ROOT / rel / "metrics.json").exists()
         assert not (ROOT / rel / "last.safetensors").exists()  # resume checkpoints are not shipped
-    assert models_root(None) == ROOT and str(models_root("elsewhere")) == "elsewhere"
+    assert models_root(None) == ROOT and models_root(ROOT / "ablations") == ROOT / "ablations"
 
 
 def test_session_loads_the_shipped_weights_by_default():

@@ -129,3 +129,14 @@ def test_a_root_that_trains_only_a_new_skill_uses_the_shipped_vae_cost_and_skill
     own = models(tmp_path / "own", "vae", "feasibility/press")
     assert module_dir(own, "vae") == own / "vae" and module_dir(own, "cost") == own / "cost"
     assert module_dir(own, "feasibility/roll") == own / "feasibility" / "roll"
+
+
+def test_a_models_root_that_does_not_exist_is_an_error_not_the_shipped_weights(tmp_path):
+    from pasta.weights import models_root
+
+    with pytest.raises(ConfigError, match=r"models=.*typo: the directory does not exist"):
+        models_root(tmp_path / "typo")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(ConfigError, match="is not a directory"):
+        models_root(tmp_path / "file")
+    assert models_root("") == ROOT and models_root(tmp_path) == tmp_path

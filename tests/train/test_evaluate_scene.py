@@ -71,6 +71,7 @@ def test_default_skills_are_those_with_a_policy(tmp_path):
     from pasta.train.evaluate import evaluate_config
     from pasta.weights import ROOT
 
+    (tmp_path / "empty").mkdir()
     borrowing = evaluate_config({"models": str(tmp_path / "empty")})  # nothing of its own: the shipped policies serve
     assert borrowing.policy_dir("cut") == ROOT / "policy" / "cut"
     assert set(borrowing.skill_names()) == {name for name in demo_skills() if (ROOT / "policy" / name).is_dir()}
