@@ -60,10 +60,16 @@ LOOP_TASKS = ("crs", "cut_rearrange")
 DISTURBANCES = ("", "shift", "split", "merge", "lump", "noise")
 
 
+def result_name(task: str, *parts: str) -> str:
+    """The name ``pasta eval`` gives the PASTA row of ``task`` with these settings' parts: sorted, ``_``-joined
+    (``learned`` for ``execute.controller=learned``; pasta.commands.eval.result_path)."""
+    return f"{task}_pasta" + "".join(f"_{part}" for part in sorted(parts))
+
+
 def loop_name(task: str, kind: str, *, learned: bool, closed: bool) -> str:
     """The ``pasta eval`` result name of ``task`` under disturbance ``kind``, open or closed loop."""
-    parts = (["learned"] if learned else []) + ([f"disturb-{kind}"] if kind else []) + (["loop-closed"] if closed else [])
-    return f"{task}_pasta" + "".join(f"_{part}" for part in sorted(parts))  # as pasta eval names it: parts sorted
+    return result_name(task, *(["learned"] if learned else []), *([f"disturb-{kind}"] if kind else []),
+                       *(["loop-closed"] if closed else []))
 
 
 def loop_names() -> list[str]:
@@ -194,8 +200,7 @@ PLUGIN = ("pasta-pinch", "pinch", "examples/pasta-pinch/pinch_weights")
 
 def plugin_name(task: str, *, learned: bool) -> str:
     """The ``pasta eval`` result name of ``task`` with the plugin's models root (``models=...``)."""
-    parts = (["learned"] if learned else []) + [f"models-{Path(PLUGIN[2]).name.replace('_', '-')}"]
-    return f"{task}_pasta" + "".join(f"_{part}" for part in sorted(parts))
+    return result_name(task, *(["learned"] if learned else []), f"models-{Path(PLUGIN[2]).name.replace('_', '-')}")
 
 
 def plugin_names() -> list[str]:
