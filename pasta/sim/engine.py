@@ -1,21 +1,17 @@
 """The Taichi side: runtime initialisation, fields and MLS-MPM kernels.
 
-One substep = 4 kernel launches:
+:func:`physics` holds the physics once, as Taichi functions over whichever fields a driver passes: the
+constitutive model (von Mises return mapping on log singular values, fixed-corotated stress, the APIC
+"affine" matrix), the quadratic B-spline scatter and gather, the grid-node update (momentum -> velocity,
+gravity, tool contact in a soft SDF band with Coulomb friction, floor friction with a second friction inside
+the spreading area, free-slip walls) and the advection with its divergence check. Two drivers use it:
 
-1. ``constitutive`` (parallel over particles): trial F = (I + dt C) F, SVD, von Mises return mapping
-   on log singular values, fixed-corotated stress, and the per-particle APIC "affine" matrix.
-2. ``p2g`` (scatter, serialized loop): quadratic B-spline scatter of mass and momentum into a
-   (m v, m) grid, also tracking the bounding box of touched nodes. A serialized loop lets Taichi
-   demote the float atomics to plain adds (about 3x faster than the atomic parallel scatter on
-   CPU) and makes the result bitwise deterministic.
-3. ``grid_op`` (parallel over the touched box only): momentum -> velocity, gravity, tool contact
-   (soft SDF band, Coulomb friction), floor friction (a second friction inside the spreading
-   area), free-slip walls.
-4. ``g2p`` (parallel over particles): gather velocity and APIC C, advect, divergence check, clamp;
-   then clear the touched grid box so the grid is all-zero between substeps.
-
-The per-particle constitutive update and the scatter are separate kernels and every parameter is a
-field, so a differentiable variant (per-substep particle history + ``ti.ad``) can reuse them.
+- :class:`Engine`, the forward simulator: one kernel launch per substep (constitutive update with a
+  warm-started one-sweep SVD; the scatter as one serialized loop on CPU, where Taichi demotes the atomics
+  to plain adds: about 3x faster than the parallel atomic scatter and bitwise deterministic; the grid
+  update over the touched box only; the gather; clearing the touched box).
+- :class:`pasta.sim.grad.GradEngine`, the differentiable one: per-substep particle history, Taichi
+  autodiff kernels and a hand-written SVD adjoint (docs/simulator.md, "Gradients").
 
 Tools are runtime data too: up to ``MAX_TOOLS`` tools of up to ``MAX_PRIMS`` primitives each, their
 kinds, sizes, offsets, bounding radii and frictions in fields (``pasta.sim.tools.ToolTable`` fills
@@ -26,6 +22,7 @@ Tools are applied to a grid node one after the other in the simulator's tool ord
 
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import taichi as ti
@@ -116,27 +113,316 @@ def taichi_settings() -> dict:
             "debug": bool(cfg.debug), "random_seed": int(cfg.random_seed)}
 
 
+def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
+    """The MLS-MPM physics as Taichi functions over the given fields, shared by the forward :class:`Engine`
+    and the differentiable :class:`~pasta.sim.grad.GradEngine` (one copy of the physics, two drivers).
+
+    ``params``: the runtime parameter field (``P_*`` slots); ``tool``: the (MAX_TOOLS, TS) tool-state field
+    of the env step; ``statics``: the static tool fields by name (``n_tools``, ``tool_kind``, ``tool_geo``,
+    ``tool_n_prims``, ``tool_bound2``, ``tool_fric``). Returns a namespace of ``ti.func`` s:
+    ``node_velocity(I, mv, t_now)`` (and its three parts ``node_start``, ``node_contact``, ``node_bounds``),
+    ``return_map(sig)``, ``affine(Fp, U, V, s, Cp)``,
+    ``scatter(grid, xp, vp, Ap)``, ``gather(grid, xp)``, ``advance(xp, new_v, new_C, bad)``, and the touched-box
+    helpers ``box_extent(bbox)``, ``box_node(lo, ext, tt)``.
+    ``differentiable``: the variant for reverse-mode autodiff, the same physics: the loop over a tool's
+    primitives unrolled (Taichi's autodiff cannot take a loop whose bound is read inside another loop) and
+    every vector length through :func:`length`, whose gradient at zero is zero, not NaN (the friction of a
+    node at rest relative to a tool or the floor).
+    """
+    dx = 1.0 / n
+    inv_dx = float(n)
+    p_vol = P_VOL_FACTOR * dx**3
+    p_mass = p_vol * RHO
+    lo_clamp = ti.Vector([2 * dx, dx, 2 * dx])
+    hi_clamp = ti.Vector([1 - 3 * dx, 1 - 3 * dx, 1 - 3 * dx])
+    n_tools, tool_kind, tool_geo = statics["n_tools"], statics["tool_kind"], statics["tool_geo"]
+
+    @ti.func
+    def length(v):
+        """|v|; in the differentiable variant sqrt(v.v + 1e-30), whose gradient at v = 0 is 0 (the forward
+        value differs below 1e-15)."""
+        out = 0.0
+        if ti.static(differentiable):
+            out = ti.sqrt(v.dot(v) + 1e-30)
+        else:
+            out = v.norm()
+        return out
+    tool_n_prims, tool_bound2, tool_fric = statics["tool_n_prims"], statics["tool_bound2"], statics["tool_fric"]
+
+    @ti.func
+    def box_sdf(q, h):
+        d = ti.abs(q) - h
+        sgn = ti.Vector([1.0 if q[0] >= 0 else -1.0, 1.0 if q[1] >= 0 else -1.0, 1.0 if q[2] >= 0 else -1.0])
+        dist = 0.0
+        nrm = ti.Vector([0.0, 0.0, 0.0])
+        dmax = ti.max(d[0], d[1], d[2])
+        if dmax > 0:
+            o = ti.max(d, 0.0)
+            dist = length(o)
+            nrm = o / ti.max(dist, 1e-12) * sgn
+        else:
+            dist = dmax
+            if d[0] >= d[1] and d[0] >= d[2]:
+                nrm[0] = sgn[0]
+            elif d[1] >= d[2]:
+                nrm[1] = sgn[1]
+            else:
+                nrm[2] = sgn[2]
+        return dist, nrm
+
+    @ti.func
+    def prim_sdf(t, k, q, ap):
+        """Signed distance, outward unit normal (tool frame) and finger side (-1, 0, +1: which finger of
+        a finger pair is nearest, whose opening velocity the contact sees) of primitive k of tool t."""
+        kind = tool_kind[t, k]
+        qp = q - ti.Vector([tool_geo[t, k, 0], tool_geo[t, k, 1], tool_geo[t, k, 2]])
+        h = ti.Vector([tool_geo[t, k, 3], tool_geo[t, k, 4], tool_geo[t, k, 5]])
+        dist = 0.0
+        nrm = ti.Vector([0.0, 1.0, 0.0])
+        side = 0.0
+        if kind == K_CAPSULE:  # along local z: h = (radius, half length, -)
+            cz = ti.min(ti.max(qp[2], -h[1]), h[1])
+            r = qp - ti.Vector([0.0, 0.0, cz])
+            ln = length(r)
+            dist = ln - h[0]
+            if ln > 1e-9:
+                nrm = r / ln
+        elif kind == K_FINGERS:  # two boxes h at local x = +-(aperture / 2 + h[0])
+            side = 1.0 if qp[0] >= 0 else -1.0
+            dist, nrm = box_sdf(qp - ti.Vector([side * (ap * 0.5 + h[0]), 0.0, 0.0]), h)
+        else:
+            dist, nrm = box_sdf(qp, h)
+            if kind == K_WEDGE:  # box intersected with a downward wedge whose edge is the box bottom
+                ca = tool_geo[t, k, 6]
+                sa = tool_geo[t, k, 7]
+                r = qp - ti.Vector([0.0, -h[1], 0.0])
+                p1 = r[0] * ca - r[1] * sa
+                p2 = -r[0] * ca - r[1] * sa
+                if p1 > dist and p1 >= p2:
+                    dist = p1
+                    nrm = ti.Vector([ca, -sa, 0.0])
+                elif p2 > dist:
+                    dist = p2
+                    nrm = ti.Vector([-ca, -sa, 0.0])
+        return dist, nrm, side
+
+    @ti.func
+    def tool_sdf(t, q, ap):
+        """Union of tool t's primitives: the nearest one's distance, normal and finger side."""
+        dist = 0.0
+        nrm = ti.Vector([0.0, 1.0, 0.0])
+        side = 0.0
+        if ti.static(differentiable):
+            for k in ti.static(range(MAX_PRIMS)):
+                if k < tool_n_prims[t]:
+                    dk, nk, sk = prim_sdf(t, k, q, ap)
+                    if k == 0 or dk < dist:
+                        dist = dk
+                        nrm = nk
+                        side = sk
+        else:
+            for k in range(tool_n_prims[t]):
+                dk, nk, sk = prim_sdf(t, k, q, ap)
+                if k == 0 or dk < dist:
+                    dist = dk
+                    nrm = nk
+                    side = sk
+        return dist, nrm, side
+
+    @ti.func
+    def tool_contact(t, xn, vel, t_now, soft, band):
+        """Grid velocity ``vel`` at node position ``xn`` after tool t's contact (soft SDF band, Coulomb
+        friction): unchanged outside the band."""
+        out = vel
+        tv = ti.Vector([tool[t, TS_VEL], tool[t, TS_VEL + 1], tool[t, TS_VEL + 2]])
+        c = ti.Vector([tool[t, TS_POS], tool[t, TS_POS + 1], tool[t, TS_POS + 2]]) + tv * t_now
+        r = xn - c
+        if r.norm_sqr() < tool_bound2[t]:
+            yaw = tool[t, TS_YAW] + tool[t, TS_YAWRATE] * t_now
+            cy, sy = ti.cos(yaw), ti.sin(yaw)
+            q = ti.Vector([cy * r[0] - sy * r[2], r[1], sy * r[0] + cy * r[2]])
+            ap = tool[t, TS_AP] + tool[t, TS_APRATE] * t_now
+            d, nl, side = tool_sdf(t, q, ap)
+            if d <= 0 or d < band:
+                infl = ti.min(ti.exp(-d * soft), 1.0)
+                nw = ti.Vector([cy * nl[0] + sy * nl[2], nl[1], -sy * nl[0] + cy * nl[2]])
+                om = ti.Vector([tool[t, TS_OMEGA], tool[t, TS_OMEGA + 1], tool[t, TS_OMEGA + 2]])
+                vt = tv + om.cross(r)
+                if side != 0.0:  # a finger moves at half the aperture rate along local +-x
+                    vt += (side * 0.5 * tool[t, TS_APRATE]) * ti.Vector([cy, 0.0, -sy])
+                rel = out - vt
+                vn = rel.dot(nw)
+                tang = rel
+                if vn < 0:
+                    tang = rel - vn * nw
+                    tl = length(tang)
+                    tang = tang * (ti.max(0.0, tl + tool_fric[t] * vn) / ti.max(tl, 1e-12))
+                out = vt + (1.0 - infl) * rel + infl * tang
+        return out
+
+    @ti.func
+    def node_start(mv):
+        """A grid node's velocity from its momentum ``mv`` = (m v, m), m > 0, plus one substep of gravity."""
+        dt = params[P_DT]
+        vel = ti.Vector([mv[0], mv[1], mv[2]]) / mv[3]
+        vel[1] += dt * params[P_GRAVITY]
+        return vel
+
+    @ti.func
+    def node_contact(t, I, vel, t_now):
+        """Node I's velocity after tool t's contact (soft SDF band, Coulomb friction)."""
+        soft = params[P_SOFTNESS]
+        band = 0.0
+        if soft > 0:
+            band = 2.302585 / soft  # influence exp(-soft d) > 0.1
+        return tool_contact(t, ti.cast(I, ti.f32) * dx, vel, t_now, soft, band)
+
+    @ti.func
+    def node_bounds(I, vel):
+        """Node I's velocity after the floor (Coulomb friction, higher inside the spreading area) and the
+        free-slip side walls and ceiling."""
+        out = vel
+        xn = ti.cast(I, ti.f32) * dx
+        if I[1] < FLOOR_CELLS and out[1] < 0:
+            mu_f = params[P_GROUND_FRIC]
+            if params[P_SPREAD_X0] <= xn[0] and xn[0] <= params[P_SPREAD_X1]:
+                mu_f = params[P_SPREAD_FRIC]
+            tl = 0.0
+            if ti.static(differentiable):
+                tl = length(ti.Vector([out[0], out[2]]))
+            else:
+                tl = ti.sqrt(out[0] ** 2 + out[2] ** 2)
+            scale = ti.max(0.0, tl + mu_f * out[1]) / ti.max(tl, 1e-12)
+            out = ti.Vector([out[0] * scale, 0.0, out[2] * scale])
+        for d in ti.static(range(3)):
+            if ti.static(d != 1):  # noqa: SIM102 - a compile-time branch: no runtime `and` with it
+                if I[d] < WALL_CELLS and out[d] < 0:
+                    out[d] = 0.0
+            if I[d] > n - WALL_CELLS and out[d] > 0:
+                out[d] = 0.0
+        return out
+
+    @ti.func
+    def node_velocity(I, mv, t_now):
+        """Grid node I's new velocity from its momentum ``mv`` = (m v, m), m > 0: gravity, every tool's
+        contact in the simulator's tool order, floor, walls."""
+        vel = node_start(mv)
+        for t in range(n_tools[None]):
+            vel = node_contact(t, I, vel, t_now)
+        return node_bounds(I, vel)
+
+    @ti.func
+    def return_map(sig):
+        """Von Mises return mapping on the log singular values: the new singular values, and whether they
+        differ from ``sig`` (plastic flow, or an element squeezed below 5 %)."""
+        yield_strain = params[P_YIELD] / (2.0 * params[P_MU])
+        e = ti.log(ti.max(sig, 0.05))
+        changed = sig.min() < 0.05
+        e_hat = e - e.sum() / 3.0
+        e_norm = ti.sqrt(e_hat.dot(e_hat) + 1e-12)
+        dgamma = e_norm - yield_strain
+        if dgamma > 0:
+            e = e - dgamma / e_norm * e_hat
+            changed = True
+        return ti.exp(e), changed
+
+    @ti.func
+    def affine(Fp, U, V, s, Cp):
+        """Fixed-corotated stress of the deformation Fp = U diag(s) V^T, as the APIC affine momentum matrix
+        the scatter spreads (stress term plus the particle's mass times its velocity gradient Cp)."""
+        mu = params[P_MU]
+        lam = params[P_LAM]
+        J = s[0] * s[1] * s[2]
+        R = U @ V.transpose()
+        stress = 2.0 * mu * (Fp - R) @ Fp.transpose() + ti.Matrix.identity(ti.f32, 3) * (lam * J * (J - 1.0))
+        return (-params[P_DT] * p_vol * 4.0 * inv_dx * inv_dx) * stress + p_mass * Cp
+
+    @ti.func
+    def scatter(grid: ti.template(), xp, vp, Ap):  # type: ignore[valid-type]  # Taichi's idiom
+        """P2G of one particle into ``grid`` (m v, m) (quadratic B-spline, APIC); returns its stencil base."""
+        Xp = xp * inv_dx
+        base = ti.cast(Xp - 0.5, ti.i32)
+        fx = Xp - ti.cast(base, ti.f32)
+        w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+        mv = p_mass * vp
+        for i, j, k in ti.static(ti.ndrange(3, 3, 3)):
+            dpos = (ti.Vector([i, j, k], ti.f32) - fx) * dx
+            weight = w[i][0] * w[j][1] * w[k][2]
+            mom = weight * (mv + Ap @ dpos)
+            grid[base + ti.Vector([i, j, k])] += ti.Vector([mom[0], mom[1], mom[2], weight * p_mass])
+        return base
+
+    @ti.func
+    def gather(grid: ti.template(), xp):  # type: ignore[valid-type]  # Taichi's idiom
+        """G2P of one particle from ``grid`` (v, m): its new velocity and APIC C."""
+        Xp = xp * inv_dx
+        base = ti.cast(Xp - 0.5, ti.i32)
+        fx = Xp - ti.cast(base, ti.f32)
+        w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
+        new_v = ti.Vector.zero(ti.f32, 3)
+        new_C = ti.Matrix.zero(ti.f32, 3, 3)
+        for i, j, k in ti.static(ti.ndrange(3, 3, 3)):
+            dpos = ti.Vector([i, j, k], ti.f32) - fx
+            gv = grid[base + ti.Vector([i, j, k])]
+            gvel = ti.Vector([gv[0], gv[1], gv[2]])
+            weight = w[i][0] * w[j][1] * w[k][2]
+            new_v += weight * gvel
+            new_C += (4.0 * inv_dx * weight) * gvel.outer_product(dpos)
+        return new_v, new_C
+
+    @ti.func
+    def advance(xp, new_v, new_C, bad: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
+        """Advect one particle; flag divergence in ``bad`` (non-finite or faster than dx/dt: the particle
+        keeps its position, at rest; outside the unit cube) and clamp inside the walls. Returns x, v, C."""
+        dt = params[P_DT]
+        x_out = xp
+        v_out = ti.Vector.zero(ti.f32, 3)
+        C_out = ti.Matrix.zero(ti.f32, 3, 3)
+        xn = xp + dt * new_v
+        if not (new_v.norm_sqr() * dt * dt <= dx * dx):  # also catches NaN / inf
+            ti.atomic_add(bad[0], 1)
+        else:
+            if xn.min() < 0.0 or xn.max() > 1.0:
+                ti.atomic_add(bad[1], 1)
+            v_out = new_v
+            C_out = new_C
+            x_out = ti.min(ti.max(xn, lo_clamp), hi_clamp)
+        return x_out, v_out, C_out
+
+    @ti.func
+    def box_extent(bbox: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
+        """The lowest node and the size of the box of grid nodes ``bbox`` (lo xyz, hi xyz inclusive) holds."""
+        lo = ti.Vector([bbox[0], bbox[1], bbox[2]])
+        ext = ti.max(ti.Vector([bbox[3], bbox[4], bbox[5]]) - lo + 1, 0)
+        return lo, ext
+
+    @ti.func
+    def box_node(lo, ext, tt):
+        """Node number ``tt`` of the box (lo, ext)."""
+        return ti.Vector([lo[0] + tt // (ext[1] * ext[2]), lo[1] + (tt // ext[2]) % ext[1], lo[2] + tt % ext[2]])
+
+    return SimpleNamespace(node_velocity=node_velocity, node_start=node_start, node_contact=node_contact,
+                           node_bounds=node_bounds, return_map=return_map, affine=affine, scatter=scatter,
+                           gather=gather, advance=advance, box_extent=box_extent, box_node=box_node)
+
+
 class Engine:
-    """Fields and kernels for one (n_grid, max_particles) layout. Built once per process per layout.
+    """Fields and forward kernels for one (n_grid, max_particles) layout. Built once per process per layout.
 
     ``scatter``: "serial" (CPU default: deterministic, fastest on CPU) or "atomic" (GPU: parallel
-    float atomics, not bitwise reproducible). ``fast_svd``: warm-started one-sweep Jacobi SVD (see
-    ``warm_svd``) instead of Taichi's 5-sweep ``ti.svd`` (2.2x cheaper constitutive kernel).
-    ``fused``: run one substep as one kernel launch (5 loops) instead of 4 launches.
+    float atomics, not bitwise reproducible). One substep is one kernel launch; the SVD is a warm-started
+    one-sweep Jacobi (``warm_svd``: 2.2x cheaper than Taichi's 5-sweep ``ti.svd``).
     """
 
-    def __init__(self, n_grid: int, max_particles: int, scatter: str = "serial", fast_svd: bool = True,
-                 fused: bool = True) -> None:
+    def __init__(self, n_grid: int, max_particles: int, scatter: str = "serial") -> None:
         if scatter not in ("serial", "atomic"):
             raise ConfigError(f"sim.scatter={scatter!r}: must be 'serial' or 'atomic'")
         self.n_grid = n = n_grid
         self.max_particles = max_particles
-        self.dx = dx = 1.0 / n
-        inv_dx = float(n)
-        p_vol = P_VOL_FACTOR * dx**3
-        p_mass = p_vol * RHO
-        self.p_vol, self.p_mass = p_vol, p_mass
-        self.fast_svd, self.fused, self.scatter_mode = fast_svd, fused, scatter
+        self.dx = 1.0 / n
+        self.p_vol = P_VOL_FACTOR * self.dx**3
+        self.p_mass = self.p_vol * RHO
+        self.scatter_mode = scatter
 
         # particles
         self.x = ti.Vector.field(3, ti.f32, shape=max_particles)
@@ -153,95 +439,21 @@ class Engine:
         self.params = ti.field(ti.f32, shape=N_PARAMS)
         self.tool = ti.field(ti.f32, shape=(MAX_TOOLS, TS))
         # static tool data (ToolTable.kernel_arrays), rewritten when another tool set takes the engine
-        self.n_tools = ti.field(ti.i32, shape=())
-        self.tool_kind = ti.field(ti.i32, shape=(MAX_TOOLS, MAX_PRIMS))
-        self.tool_geo = ti.field(ti.f32, shape=(MAX_TOOLS, MAX_PRIMS, GEO))
-        self.tool_n_prims = ti.field(ti.i32, shape=MAX_TOOLS)
-        self.tool_bound2 = ti.field(ti.f32, shape=MAX_TOOLS)
-        self.tool_fric = ti.field(ti.f32, shape=MAX_TOOLS)
+        self.statics = {
+            "n_tools": ti.field(ti.i32, shape=()),
+            "tool_kind": ti.field(ti.i32, shape=(MAX_TOOLS, MAX_PRIMS)),
+            "tool_geo": ti.field(ti.f32, shape=(MAX_TOOLS, MAX_PRIMS, GEO)),
+            "tool_n_prims": ti.field(ti.i32, shape=MAX_TOOLS),
+            "tool_bound2": ti.field(ti.f32, shape=MAX_TOOLS),
+            "tool_fric": ti.field(ti.f32, shape=MAX_TOOLS),
+        }
+        self.n_tools = self.statics["n_tools"]
 
-        x, v, C, F, A, Vr, n_p, grid, bbox, bad, params, tool = (
-            self.x, self.v, self.C, self.F, self.A, self.Vr, self.n_p, self.grid, self.bbox, self.bad,
-            self.params, self.tool,
+        x, v, C, F, A, Vr, n_p, grid, bbox, bad, params = (
+            self.x, self.v, self.C, self.F, self.A, self.Vr, self.n_p, self.grid, self.bbox, self.bad, self.params,
         )
-        n_tools, tool_kind, tool_geo, tool_n_prims, tool_bound2, tool_fric = (
-            self.n_tools, self.tool_kind, self.tool_geo, self.tool_n_prims, self.tool_bound2, self.tool_fric,
-        )
-        lo_clamp = ti.Vector([2 * dx, dx, 2 * dx])
-        hi_clamp = ti.Vector([1 - 3 * dx, 1 - 3 * dx, 1 - 3 * dx])
+        phys = physics(n, params, self.tool, self.statics)
         serial = scatter == "serial"
-
-        # ---------------------------------------------------------------- geometry
-        @ti.func
-        def box_sdf(q, h):
-            d = ti.abs(q) - h
-            sgn = ti.Vector([1.0 if q[0] >= 0 else -1.0, 1.0 if q[1] >= 0 else -1.0, 1.0 if q[2] >= 0 else -1.0])
-            dist = 0.0
-            nrm = ti.Vector([0.0, 0.0, 0.0])
-            dmax = ti.max(d[0], d[1], d[2])
-            if dmax > 0:
-                o = ti.max(d, 0.0)
-                dist = o.norm()
-                nrm = o / ti.max(dist, 1e-12) * sgn
-            else:
-                dist = dmax
-                if d[0] >= d[1] and d[0] >= d[2]:
-                    nrm[0] = sgn[0]
-                elif d[1] >= d[2]:
-                    nrm[1] = sgn[1]
-                else:
-                    nrm[2] = sgn[2]
-            return dist, nrm
-
-        @ti.func
-        def prim_sdf(t, k, q, ap):
-            """Signed distance, outward unit normal (tool frame) and finger side (-1, 0, +1: which finger of
-            a finger pair is nearest, whose opening velocity the contact sees) of primitive k of tool t."""
-            kind = tool_kind[t, k]
-            qp = q - ti.Vector([tool_geo[t, k, 0], tool_geo[t, k, 1], tool_geo[t, k, 2]])
-            h = ti.Vector([tool_geo[t, k, 3], tool_geo[t, k, 4], tool_geo[t, k, 5]])
-            dist = 0.0
-            nrm = ti.Vector([0.0, 1.0, 0.0])
-            side = 0.0
-            if kind == K_CAPSULE:  # along local z: h = (radius, half length, -)
-                cz = ti.min(ti.max(qp[2], -h[1]), h[1])
-                r = qp - ti.Vector([0.0, 0.0, cz])
-                ln = r.norm()
-                dist = ln - h[0]
-                if ln > 1e-9:
-                    nrm = r / ln
-            elif kind == K_FINGERS:  # two boxes h at local x = +-(aperture / 2 + h[0])
-                side = 1.0 if qp[0] >= 0 else -1.0
-                dist, nrm = box_sdf(qp - ti.Vector([side * (ap * 0.5 + h[0]), 0.0, 0.0]), h)
-            else:
-                dist, nrm = box_sdf(qp, h)
-                if kind == K_WEDGE:  # box intersected with a downward wedge whose edge is the box bottom
-                    ca = tool_geo[t, k, 6]
-                    sa = tool_geo[t, k, 7]
-                    r = qp - ti.Vector([0.0, -h[1], 0.0])
-                    p1 = r[0] * ca - r[1] * sa
-                    p2 = -r[0] * ca - r[1] * sa
-                    if p1 > dist and p1 >= p2:
-                        dist = p1
-                        nrm = ti.Vector([ca, -sa, 0.0])
-                    elif p2 > dist:
-                        dist = p2
-                        nrm = ti.Vector([-ca, -sa, 0.0])
-            return dist, nrm, side
-
-        @ti.func
-        def tool_sdf(t, q, ap):
-            """Union of tool t's primitives: the nearest one's distance, normal and finger side."""
-            dist = 0.0
-            nrm = ti.Vector([0.0, 1.0, 0.0])
-            side = 0.0
-            for k in range(tool_n_prims[t]):
-                dk, nk, sk = prim_sdf(t, k, q, ap)
-                if k == 0 or dk < dist:
-                    dist = dk
-                    nrm = nk
-                    side = sk
-            return dist, nrm, side
 
         # ---------------------------------------------------------------- constitutive model
         @ti.func
@@ -290,151 +502,15 @@ class Engine:
 
         @ti.func
         def constitutive_p(p):
-            """Trial F, return mapping (von Mises on log singular values), fixed-corotated stress;
-            writes F[p] and the APIC affine matrix A[p]."""
-            dt = params[P_DT]
-            mu = params[P_MU]
-            lam = params[P_LAM]
-            yield_strain = params[P_YIELD] / (2.0 * mu)
-            Fp = (ti.Matrix.identity(ti.f32, 3) + dt * C[p]) @ F[p]
-            U = ti.Matrix.identity(ti.f32, 3)
-            V = ti.Matrix.identity(ti.f32, 3)
-            sig = ti.Vector([1.0, 1.0, 1.0])
-            if ti.static(fast_svd):
-                U, sig, V = warm_svd(Fp, Vr[p])
-                Vr[p] = V
-            else:
-                U, sm, V = ti.svd(Fp)
-                sig = ti.Vector([sm[0, 0], sm[1, 1], sm[2, 2]])
-            e = ti.log(ti.max(sig, 0.05))
-            changed = sig.min() < 0.05
-            e_hat = e - e.sum() / 3.0
-            e_norm = ti.sqrt(e_hat.dot(e_hat) + 1e-12)
-            dgamma = e_norm - yield_strain
-            if dgamma > 0:
-                e = e - dgamma / e_norm * e_hat
-                changed = True
-            s = ti.exp(e)
-            if changed or ti.static(fast_svd):
-                # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly
-                Fp = U @ ti.Matrix([[s[0], 0.0, 0.0], [0.0, s[1], 0.0], [0.0, 0.0, s[2]]]) @ V.transpose()
-            J = s[0] * s[1] * s[2]
-            R = U @ V.transpose()
-            stress = 2.0 * mu * (Fp - R) @ Fp.transpose() + ti.Matrix.identity(ti.f32, 3) * (lam * J * (J - 1.0))
+            """Trial F, return mapping, fixed-corotated stress; writes F[p] and the APIC affine matrix A[p]."""
+            Fp = (ti.Matrix.identity(ti.f32, 3) + params[P_DT] * C[p]) @ F[p]
+            U, sig, V = warm_svd(Fp, Vr[p])
+            Vr[p] = V
+            s, _changed = phys.return_map(sig)
+            # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly
+            Fp = U @ ti.Matrix([[s[0], 0.0, 0.0], [0.0, s[1], 0.0], [0.0, 0.0, s[2]]]) @ V.transpose()
             F[p] = Fp
-            A[p] = (-dt * p_vol * 4.0 * inv_dx * inv_dx) * stress + p_mass * C[p]
-
-        # ---------------------------------------------------------------- transfers
-        @ti.func
-        def scatter_p(p):
-            """P2G of particle p (quadratic B-spline, APIC); returns its stencil base node."""
-            Xp = x[p] * inv_dx
-            base = ti.cast(Xp - 0.5, ti.i32)
-            fx = Xp - ti.cast(base, ti.f32)
-            w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
-            mv = p_mass * v[p]
-            aff = A[p]
-            for i, j, k in ti.static(ti.ndrange(3, 3, 3)):
-                dpos = (ti.Vector([i, j, k], ti.f32) - fx) * dx
-                weight = w[i][0] * w[j][1] * w[k][2]
-                mom = weight * (mv + aff @ dpos)
-                grid[base + ti.Vector([i, j, k])] += ti.Vector([mom[0], mom[1], mom[2], weight * p_mass])
-            return base
-
-        @ti.func
-        def box_extent():
-            lo = ti.Vector([bbox[0], bbox[1], bbox[2]])
-            ext = ti.max(ti.Vector([bbox[3], bbox[4], bbox[5]]) - lo + 1, 0)
-            return lo, ext
-
-        @ti.func
-        def box_node(lo, ext, tt):
-            return ti.Vector([lo[0] + tt // (ext[1] * ext[2]), lo[1] + (tt // ext[2]) % ext[1], lo[2] + tt % ext[2]])
-
-        @ti.func
-        def grid_node(I, t_now):
-            """Momentum -> velocity, gravity, tool contact, floor friction, walls (node I)."""
-            gv = grid[I]
-            if gv[3] > 0:
-                dt = params[P_DT]
-                soft = params[P_SOFTNESS]
-                band = 0.0
-                if soft > 0:
-                    band = 2.302585 / soft  # influence exp(-soft d) > 0.1
-                vel = ti.Vector([gv[0], gv[1], gv[2]]) / gv[3]
-                vel[1] += dt * params[P_GRAVITY]
-                xn = ti.cast(I, ti.f32) * dx
-                for t in range(n_tools[None]):
-                    tv = ti.Vector([tool[t, TS_VEL], tool[t, TS_VEL + 1], tool[t, TS_VEL + 2]])
-                    c = ti.Vector([tool[t, TS_POS], tool[t, TS_POS + 1], tool[t, TS_POS + 2]]) + tv * t_now
-                    r = xn - c
-                    if r.norm_sqr() < tool_bound2[t]:
-                        yaw = tool[t, TS_YAW] + tool[t, TS_YAWRATE] * t_now
-                        cy, sy = ti.cos(yaw), ti.sin(yaw)
-                        q = ti.Vector([cy * r[0] - sy * r[2], r[1], sy * r[0] + cy * r[2]])
-                        ap = tool[t, TS_AP] + tool[t, TS_APRATE] * t_now
-                        d, nl, side = tool_sdf(t, q, ap)
-                        if d <= 0 or d < band:
-                            infl = ti.min(ti.exp(-d * soft), 1.0)
-                            nw = ti.Vector([cy * nl[0] + sy * nl[2], nl[1], -sy * nl[0] + cy * nl[2]])
-                            om = ti.Vector([tool[t, TS_OMEGA], tool[t, TS_OMEGA + 1], tool[t, TS_OMEGA + 2]])
-                            vt = tv + om.cross(r)
-                            if side != 0.0:  # a finger moves at half the aperture rate along local +-x
-                                vt += (side * 0.5 * tool[t, TS_APRATE]) * ti.Vector([cy, 0.0, -sy])
-                            rel = vel - vt
-                            vn = rel.dot(nw)
-                            tang = rel
-                            if vn < 0:
-                                tang = rel - vn * nw
-                                tl = tang.norm()
-                                tang = tang * (ti.max(0.0, tl + tool_fric[t] * vn) / ti.max(tl, 1e-12))
-                            vel = vt + (1.0 - infl) * rel + infl * tang
-                # floor: Coulomb friction, higher inside the spreading area
-                if I[1] < FLOOR_CELLS and vel[1] < 0:
-                    mu_f = params[P_GROUND_FRIC]
-                    if params[P_SPREAD_X0] <= xn[0] and xn[0] <= params[P_SPREAD_X1]:
-                        mu_f = params[P_SPREAD_FRIC]
-                    tl = ti.sqrt(vel[0] ** 2 + vel[2] ** 2)
-                    scale = ti.max(0.0, tl + mu_f * vel[1]) / ti.max(tl, 1e-12)
-                    vel = ti.Vector([vel[0] * scale, 0.0, vel[2] * scale])
-                # free-slip side walls and ceiling
-                for d in ti.static(range(3)):
-                    if ti.static(d != 1):  # noqa: SIM102 - a compile-time branch: no runtime `and` with it
-                        if I[d] < WALL_CELLS and vel[d] < 0:
-                            vel[d] = 0.0
-                    if I[d] > n - WALL_CELLS and vel[d] > 0:
-                        vel[d] = 0.0
-                grid[I] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
-
-        @ti.func
-        def g2p_p(p):
-            """Gather v and C, advect, flag divergence (non-finite, faster than dx/dt, outside the unit
-            cube; flagged particles keep their position), clamp inside the walls."""
-            dt = params[P_DT]
-            Xp = x[p] * inv_dx
-            base = ti.cast(Xp - 0.5, ti.i32)
-            fx = Xp - ti.cast(base, ti.f32)
-            w = [0.5 * (1.5 - fx) ** 2, 0.75 - (fx - 1.0) ** 2, 0.5 * (fx - 0.5) ** 2]
-            new_v = ti.Vector.zero(ti.f32, 3)
-            new_C = ti.Matrix.zero(ti.f32, 3, 3)
-            for i, j, k in ti.static(ti.ndrange(3, 3, 3)):
-                dpos = ti.Vector([i, j, k], ti.f32) - fx
-                gv = grid[base + ti.Vector([i, j, k])]
-                gvel = ti.Vector([gv[0], gv[1], gv[2]])
-                weight = w[i][0] * w[j][1] * w[k][2]
-                new_v += weight * gvel
-                new_C += (4.0 * inv_dx * weight) * gvel.outer_product(dpos)
-            xn = x[p] + dt * new_v
-            if not (new_v.norm_sqr() * dt * dt <= dx * dx):  # also catches NaN / inf
-                ti.atomic_add(bad[0], 1)
-                v[p] = ti.Vector.zero(ti.f32, 3)
-                C[p] = ti.Matrix.zero(ti.f32, 3, 3)
-            else:
-                if xn.min() < 0.0 or xn.max() > 1.0:
-                    ti.atomic_add(bad[1], 1)
-                v[p] = new_v
-                C[p] = new_C
-                x[p] = ti.min(ti.max(xn, lo_clamp), hi_clamp)
+            A[p] = phys.affine(Fp, U, V, s, C[p])
 
         # ---------------------------------------------------------------- kernels
         @ti.kernel
@@ -445,20 +521,19 @@ class Engine:
                 Vr[p] = V
 
         @ti.kernel
-        def constitutive():
+        def substep(t_now: ti.f32):
+            """One substep: constitutive update (parallel), scatter (one serialized loop on CPU: Taichi then
+            demotes the atomics to plain adds, ~3x faster than parallel atomics and bitwise deterministic),
+            grid operation over the touched box, gather, then clear the touched box so the grid is all-zero
+            between substeps."""
             for p in range(n_p[None]):
                 constitutive_p(p)
-
-        @ti.kernel
-        def p2g():
-            """P2G. Serial mode: one serialized loop (Taichi demotes the atomics to plain adds:
-            ~3x faster than parallel atomics on CPU, bitwise deterministic)."""
             lo = ti.Vector([n, n, n])
             hi = ti.Vector([-1, -1, -1])
             if ti.static(serial):
                 ti.loop_config(serialize=True)
                 for p in range(n_p[None]):
-                    base = scatter_p(p)
+                    base = phys.scatter(grid, x[p], v[p], A[p])
                     lo = ti.min(lo, base)
                     hi = ti.max(hi, base + 2)
                 for d in ti.static(range(3)):
@@ -469,58 +544,22 @@ class Engine:
                     bbox[d] = n
                     bbox[3 + d] = -1
                 for p in range(n_p[None]):
-                    base = scatter_p(p)
+                    base = phys.scatter(grid, x[p], v[p], A[p])
                     for d in ti.static(range(3)):
                         ti.atomic_min(bbox[d], base[d])
                         ti.atomic_max(bbox[3 + d], base[d] + 2)
-
-        @ti.kernel
-        def grid_op(t_now: ti.f32):
-            lo, ext = box_extent()
+            blo, ext = phys.box_extent(bbox)
             for tt in range(ext[0] * ext[1] * ext[2]):
-                grid_node(box_node(lo, ext, tt), t_now)
-
-        @ti.kernel
-        def g2p():
+                I = phys.box_node(blo, ext, tt)
+                gv = grid[I]
+                if gv[3] > 0:
+                    vel = phys.node_velocity(I, gv, t_now)
+                    grid[I] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
             for p in range(n_p[None]):
-                g2p_p(p)
-            # clear the touched box so the grid is all-zero between substeps
-            lo, ext = box_extent()
+                new_v, new_C = phys.gather(grid, x[p])
+                x[p], v[p], C[p] = phys.advance(x[p], new_v, new_C, bad)
             for tt in range(ext[0] * ext[1] * ext[2]):
-                grid[box_node(lo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
-
-        @ti.kernel
-        def substep_fused(t_now: ti.f32):
-            """constitutive + scatter + grid_op + g2p in one launch (same code, 5 loops)."""
-            for p in range(n_p[None]):
-                constitutive_p(p)
-            lo = ti.Vector([n, n, n])
-            hi = ti.Vector([-1, -1, -1])
-            if ti.static(serial):
-                ti.loop_config(serialize=True)
-                for p in range(n_p[None]):
-                    base = scatter_p(p)
-                    lo = ti.min(lo, base)
-                    hi = ti.max(hi, base + 2)
-                for d in ti.static(range(3)):
-                    bbox[d] = lo[d]
-                    bbox[3 + d] = hi[d]
-            else:
-                for d in ti.static(range(3)):
-                    bbox[d] = n
-                    bbox[3 + d] = -1
-                for p in range(n_p[None]):
-                    base = scatter_p(p)
-                    for d in ti.static(range(3)):
-                        ti.atomic_min(bbox[d], base[d])
-                        ti.atomic_max(bbox[3 + d], base[d] + 2)
-            blo, ext = box_extent()
-            for tt in range(ext[0] * ext[1] * ext[2]):
-                grid_node(box_node(blo, ext, tt), t_now)
-            for p in range(n_p[None]):
-                g2p_p(p)
-            for tt in range(ext[0] * ext[1] * ext[2]):
-                grid[box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
+                grid[phys.box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
 
         @ti.kernel
         def check_state() -> ti.i32:
@@ -548,11 +587,7 @@ class Engine:
             bad[1] = 0
 
         self._refresh_svd = refresh_svd
-        self._constitutive = constitutive
-        self._scatter = p2g
-        self._grid_op = grid_op
-        self._g2p = g2p
-        self._substep_fused = substep_fused
+        self._substep = substep
         self.check_state = check_state
         self.clear_all = clear_all
         self.reset_bad = reset_bad
@@ -561,26 +596,19 @@ class Engine:
     def substeps(self, n_sub: int, dt: float) -> None:
         """Run ``n_sub`` substeps. The tool field holds the env-step start poses and velocities;
         substep s uses the tool poses at time (s + 1) * dt."""
-        if self.fast_svd:
-            self._refresh_svd()
+        self._refresh_svd()
         for s in range(n_sub):
-            t_now = (s + 1) * dt
-            if self.fused:
-                self._substep_fused(t_now)
-            else:
-                self._constitutive()
-                self._scatter()
-                self._grid_op(t_now)
-                self._g2p()
+            self._substep((s + 1) * dt)
 
     def set_tools(self, arrays: dict) -> None:
         """Load the static tool data of ``ToolTable.kernel_arrays()`` (no recompile)."""
-        self.tool_kind.from_numpy(arrays["kind"])
-        self.tool_geo.from_numpy(arrays["geo"])
-        self.tool_n_prims.from_numpy(arrays["n_prims"])
-        self.tool_bound2.from_numpy(arrays["bound2"])
-        self.tool_fric.from_numpy(arrays["friction"])
-        self.n_tools[None] = int(arrays["n_tools"])
+        st = self.statics
+        st["tool_kind"].from_numpy(arrays["kind"])
+        st["tool_geo"].from_numpy(arrays["geo"])
+        st["tool_n_prims"].from_numpy(arrays["n_prims"])
+        st["tool_bound2"].from_numpy(arrays["bound2"])
+        st["tool_fric"].from_numpy(arrays["friction"])
+        st["n_tools"][None] = int(arrays["n_tools"])
 
     def set_particles(self, x: np.ndarray, v: np.ndarray, F: np.ndarray, C: np.ndarray) -> None:
         """Load a particle state (N, 3), (N, 3), (N, 3, 3), (N, 3, 3); clears the grid."""

@@ -1,0 +1,535 @@
+"""Gradients through the simulator: the differentiable driver of the MLS-MPM physics (docs/simulator.md,
+"Gradients").
+
+:func:`rollout` runs a sequence of env steps on a :class:`~pasta.sim.Simulator`'s current state and returns
+the dough particles as a torch tensor that carries gradients back to the tools' actions and initial poses::
+
+    actions = {"knife": torch.zeros(8, 2, requires_grad=True)}       # (T, the tool's channels)
+    x = rollout(sim, actions)                                        # (N, 3), the final particles
+    chamfer(x, target).backward()                                    # actions["knife"].grad: (8, 2)
+
+How: :class:`GradEngine` keeps the particle state of every substep of **one** env step (x, v, C, F and the
+SVD of the trial deformation) in fields with gradients; the rollout keeps only each env step's start state
+(checkpoints, 96 bytes a particle a step). The backward pass walks the env steps in reverse: it reloads the
+step's checkpoint, re-runs its substeps to rebuild the history, then runs the substeps' adjoints in reverse,
+rebuilding each substep's grid before its adjoint (the grid is never stored). Every adjoint kernel is
+Taichi's autodiff of the kernels that :func:`pasta.sim.engine.physics` defines for the forward simulator too,
+except the SVD's, which is written by hand (autodiff through an iterative SVD is slow to compile and
+inaccurate). Every loop that sums into a shared value is serialized, so a gradient is bitwise reproducible.
+
+The forward simulator (:class:`~pasta.sim.engine.Engine`) is untouched by all this: it has no history and no
+gradient fields, and a process that never asks for a gradient never compiles these kernels.
+"""
+
+
+import math
+from collections.abc import Callable, Mapping  # no `from __future__ import annotations`: Taichi reads kernel annotations
+
+import numpy as np
+import taichi as ti
+import torch
+
+from pasta.core.errors import InputError
+
+from .engine import MAX_TOOLS, P_DT, TS, TS_AP, TS_APRATE, TS_OMEGA, TS_POS, TS_VEL, TS_YAW, TS_YAWRATE, physics
+from .simulator import Simulator
+
+#: smallest |s_j^2 - s_i^2| the SVD adjoint divides by (equal singular values: the dough at rest)
+SVD_EPS = 1e-6
+
+
+class GradEngine:
+    """History fields and kernels of one env step (``n_sub`` substeps) on an :class:`Engine`'s layout.
+
+    Shares the engine's parameter and static tool fields (what the simulator writes when it activates) and has
+    its own tool-state field with a gradient. Built once per (engine, substeps) by :func:`grad_engine`.
+    """
+
+    def __init__(self, engine, n_sub: int) -> None:
+        S, N, n = int(n_sub), engine.max_particles, engine.n_grid
+        self.engine, self.n_sub = engine, S
+        f32 = ti.f32
+        self.x = ti.Vector.field(3, f32, shape=(S + 1, N), needs_grad=True)
+        self.v = ti.Vector.field(3, f32, shape=(S + 1, N), needs_grad=True)
+        self.C = ti.Matrix.field(3, 3, f32, shape=(S + 1, N), needs_grad=True)
+        self.F = ti.Matrix.field(3, 3, f32, shape=(S + 1, N), needs_grad=True)
+        self.A = ti.Matrix.field(3, 3, f32, shape=(S, N), needs_grad=True)
+        self.U = ti.Matrix.field(3, 3, f32, shape=(S, N), needs_grad=True)
+        self.sig = ti.Vector.field(3, f32, shape=(S, N), needs_grad=True)
+        self.V = ti.Matrix.field(3, 3, f32, shape=(S, N), needs_grad=True)
+        self.grid = ti.Vector.field(4, f32, shape=(n, n, n), needs_grad=True)  # (m v, m)
+        # (v, m): after gravity (level 0), after tool t's contact (level t + 1); one kernel per level
+        self.levels = ti.Vector.field(4, f32, shape=(MAX_TOOLS + 1, n, n, n), needs_grad=True)
+        self.grid_v = ti.Vector.field(4, f32, shape=(n, n, n), needs_grad=True)  # (v, m) after floor and walls
+        self.bbox = ti.field(ti.i32, shape=6)  # the touched nodes of the current substep
+        self.box_n = ti.field(ti.i32, shape=())  # how many (an autodiff kernel has nothing outside its loops)
+        self.tool = ti.field(f32, shape=(MAX_TOOLS, TS), needs_grad=True)
+        self.n_p = ti.field(ti.i32, shape=())
+
+        x, v, C, F, A, U, sig, V = self.x, self.v, self.C, self.F, self.A, self.U, self.sig, self.V
+        grid, levels, grid_v, bbox, box_n = self.grid, self.levels, self.grid_v, self.bbox, self.box_n
+        tool, n_p = self.tool, self.n_p
+        params, bad, n_tools = engine.params, engine.bad, engine.statics["n_tools"]
+        phys = physics(n, params, tool, engine.statics, differentiable=True)
+        inv_dx = float(n)
+
+        @ti.kernel
+        def load(xs: ti.types.ndarray(), vs: ti.types.ndarray(), Fs: ti.types.ndarray(),  # type: ignore[valid-type]
+                 Cs: ti.types.ndarray()):  # type: ignore[valid-type]
+            for p in range(n_p[None]):
+                for i in ti.static(range(3)):
+                    x[0, p][i] = xs[p, i]
+                    v[0, p][i] = vs[p, i]
+                    for j in ti.static(range(3)):
+                        F[0, p][i, j] = Fs[p, i, j]
+                        C[0, p][i, j] = Cs[p, i, j]
+
+        @ti.kernel
+        def trial_svd(s: ti.i32):
+            for p in range(n_p[None]):
+                Fp = (ti.Matrix.identity(ti.f32, 3) + params[P_DT] * C[s, p]) @ F[s, p]
+                Up, Sp, Vp = ti.svd(Fp)
+                U[s, p] = Up
+                sig[s, p] = ti.Vector([Sp[0, 0], Sp[1, 1], Sp[2, 2]])
+                V[s, p] = Vp
+
+        @ti.kernel
+        def stress(s: ti.i32):
+            for p in range(n_p[None]):
+                Up = U[s, p]
+                Vp = V[s, p]
+                sn, _changed = phys.return_map(sig[s, p])
+                Fn = Up @ ti.Matrix([[sn[0], 0.0, 0.0], [0.0, sn[1], 0.0], [0.0, 0.0, sn[2]]]) @ Vp.transpose()
+                F[s + 1, p] = Fn
+                A[s, p] = phys.affine(Fn, Up, Vp, sn, C[s, p])
+
+        @ti.kernel
+        def box(s: ti.i32):
+            lo = ti.Vector([n, n, n])
+            hi = ti.Vector([-1, -1, -1])
+            ti.loop_config(serialize=True)
+            for p in range(n_p[None]):
+                base = ti.cast(x[s, p] * inv_dx - 0.5, ti.i32)
+                lo = ti.min(lo, base)
+                hi = ti.max(hi, base + 2)
+            for d in ti.static(range(3)):
+                bbox[d] = lo[d]
+                bbox[3 + d] = hi[d]
+            box_n[None] = ti.max(hi[0] - lo[0] + 1, 0) * ti.max(hi[1] - lo[1] + 1, 0) * ti.max(hi[2] - lo[2] + 1, 0)
+
+        @ti.kernel
+        def clear_box():
+            """Zero the box's grid values and gradients (the grids are all-zero outside the box in use)."""
+            for tt in range(box_n[None]):
+                lo, ext = phys.box_extent(bbox)
+                c = phys.box_node(lo, ext, tt)
+                grid[c] = ti.Vector.zero(ti.f32, 4)
+                grid.grad[c] = ti.Vector.zero(ti.f32, 4)
+                grid_v.grad[c] = ti.Vector.zero(ti.f32, 4)
+                for t in ti.static(range(MAX_TOOLS + 1)):
+                    levels.grad[t, c[0], c[1], c[2]] = ti.Vector.zero(ti.f32, 4)
+
+        @ti.kernel
+        def p2g(s: ti.i32):
+            ti.loop_config(serialize=True)
+            for p in range(n_p[None]):
+                phys.scatter(grid, x[s, p], v[s, p], A[s, p])
+
+        @ti.kernel
+        def grid_start():
+            for tt in range(box_n[None]):
+                lo, ext = phys.box_extent(bbox)
+                c = phys.box_node(lo, ext, tt)
+                gv = grid[c]
+                if gv[3] > 0:
+                    vel = phys.node_start(gv)
+                    levels[0, c[0], c[1], c[2]] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
+
+        @ti.kernel
+        def grid_start_adjoint():
+            """By hand: autodiff's d(mv / m)/dm = -mv / m^2 overflows at a node a particle's stencil barely
+            reaches (m ~ 1e-27); written as -(mv / m) / m it does not."""
+            for tt in range(box_n[None]):
+                lo, ext = phys.box_extent(bbox)
+                c = phys.box_node(lo, ext, tt)
+                gv = grid[c]
+                if gv[3] > 0:
+                    g = levels.grad[0, c[0], c[1], c[2]]
+                    u = ti.Vector([gv[0], gv[1], gv[2]]) / gv[3]
+                    gu = ti.Vector([g[0], g[1], g[2]]) / gv[3]
+                    grid.grad[c] += ti.Vector([gu[0], gu[1], gu[2], g[3] - gu.dot(u)])
+
+        @ti.kernel
+        def grid_tool(t: ti.i32, t_now: ti.f32):
+            ti.loop_config(serialize=True)  # the tool's gradient sums over nodes: one order, reproducible
+            for tt in range(box_n[None]):
+                lo, ext = phys.box_extent(bbox)
+                c = phys.box_node(lo, ext, tt)
+                gv = levels[t, c[0], c[1], c[2]]
+                if gv[3] > 0:
+                    vel = phys.node_contact(t, c, ti.Vector([gv[0], gv[1], gv[2]]), t_now)
+                    levels[t + 1, c[0], c[1], c[2]] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
+
+        @ti.kernel
+        def grid_end():
+            for tt in range(box_n[None]):
+                lo, ext = phys.box_extent(bbox)
+                c = phys.box_node(lo, ext, tt)
+                last = n_tools[None]
+                gv = levels[last, c[0], c[1], c[2]]
+                if gv[3] > 0:
+                    vel = phys.node_bounds(c, ti.Vector([gv[0], gv[1], gv[2]]))
+                    grid_v[c] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
+
+        @ti.kernel
+        def g2p(s: ti.i32):
+            ti.loop_config(serialize=True)  # the grid's gradients sum over particles
+            for p in range(n_p[None]):
+                new_v, new_C = phys.gather(grid_v, x[s, p])
+                x[s + 1, p], v[s + 1, p], C[s + 1, p] = phys.advance(x[s, p], new_v, new_C, bad)
+
+        @ti.kernel
+        def clear_grads():
+            for s, p in x:
+                if p < n_p[None]:
+                    x.grad[s, p] = ti.Vector.zero(ti.f32, 3)
+                    v.grad[s, p] = ti.Vector.zero(ti.f32, 3)
+                    C.grad[s, p] = ti.Matrix.zero(ti.f32, 3, 3)
+                    F.grad[s, p] = ti.Matrix.zero(ti.f32, 3, 3)
+            for s, p in A:
+                if p < n_p[None]:
+                    A.grad[s, p] = ti.Matrix.zero(ti.f32, 3, 3)
+                    U.grad[s, p] = ti.Matrix.zero(ti.f32, 3, 3)
+                    V.grad[s, p] = ti.Matrix.zero(ti.f32, 3, 3)
+                    sig.grad[s, p] = ti.Vector.zero(ti.f32, 3)
+            for t, k in tool:
+                tool.grad[t, k] = 0.0
+
+        @ti.kernel
+        def seed(s: ti.i32, gx: ti.types.ndarray(), gv: ti.types.ndarray(),  # type: ignore[valid-type]
+                 gF: ti.types.ndarray(), gC: ti.types.ndarray()):  # type: ignore[valid-type]
+            """Set level s's gradients (the loss's, plus what the later env steps sent back)."""
+            for p in range(n_p[None]):
+                for i in ti.static(range(3)):
+                    x.grad[s, p][i] = gx[p, i]
+                    v.grad[s, p][i] = gv[p, i]
+                    for j in ti.static(range(3)):
+                        F.grad[s, p][i, j] = gF[p, i, j]
+                        C.grad[s, p][i, j] = gC[p, i, j]
+
+        @ti.kernel
+        def svd_adjoint(s: ti.i32):
+            """Trial F = (I + dt C) F = U diag(sig) V^T: from the gradients of U, sig, V to those of C and F
+            (the standard SVD adjoint, with 1 / (s_j^2 - s_i^2) clamped at SVD_EPS)."""
+            for p in range(n_p[None]):
+                Up = U[s, p]
+                Vp = V[s, p]
+                sp = sig[s, p]
+                gU = U.grad[s, p]
+                gV = V.grad[s, p]
+                gs = sig.grad[s, p]
+                Jm = Up.transpose() @ gU
+                Km = Vp.transpose() @ gV
+                for i, j in ti.static(ti.ndrange(3, 3)):
+                    if ti.static(i == j):
+                        Jm[i, j] = 0.0
+                        Km[i, j] = 0.0
+                for i, j in ti.static([(0, 1), (0, 2), (1, 2)]):
+                    d = sp[j] * sp[j] - sp[i] * sp[i]  # (j, i) divides by -d: the clamp keeps that
+                    if ti.abs(d) < SVD_EPS:
+                        d = SVD_EPS if d >= 0 else -SVD_EPS
+                    Jm[i, j] = Jm[i, j] / d
+                    Km[i, j] = Km[i, j] / d
+                    Jm[j, i] = -Jm[j, i] / d
+                    Km[j, i] = -Km[j, i] / d
+                Sm = ti.Matrix([[sp[0], 0.0, 0.0], [0.0, sp[1], 0.0], [0.0, 0.0, sp[2]]])
+                Gm = ti.Matrix([[gs[0], 0.0, 0.0], [0.0, gs[1], 0.0], [0.0, 0.0, gs[2]]])
+                gFp = Up @ ((Jm + Jm.transpose()) @ Sm + Gm + Sm @ (Km + Km.transpose())) @ Vp.transpose()
+                dt = params[P_DT]
+                C.grad[s, p] += dt * gFp @ F[s, p].transpose()
+                F.grad[s, p] += (ti.Matrix.identity(ti.f32, 3) + dt * C[s, p]).transpose() @ gFp
+
+        @ti.kernel
+        def read_level(s: ti.i32, xs: ti.types.ndarray(), vs: ti.types.ndarray(),  # type: ignore[valid-type]
+                       Fs: ti.types.ndarray(), Cs: ti.types.ndarray(), grads: ti.i32):  # type: ignore[valid-type]
+            """Level s's state (grads=0) or its gradients (grads=1) into numpy arrays."""
+            for p in range(n_p[None]):
+                xv = x[s, p]
+                vv = v[s, p]
+                Fv = F[s, p]
+                Cv = C[s, p]
+                if grads:
+                    xv = x.grad[s, p]
+                    vv = v.grad[s, p]
+                    Fv = F.grad[s, p]
+                    Cv = C.grad[s, p]
+                for i in ti.static(range(3)):
+                    xs[p, i] = xv[i]
+                    vs[p, i] = vv[i]
+                    for j in ti.static(range(3)):
+                        Fs[p, i, j] = Fv[i, j]
+                        Cs[p, i, j] = Cv[i, j]
+
+        self._load, self._trial_svd, self._stress, self._p2g, self._g2p = load, trial_svd, stress, p2g, g2p
+        self._box, self._clear_box, self._clear_grads = box, clear_box, clear_grads
+        self._grid_start, self._grid_tool, self._grid_end = grid_start, grid_tool, grid_end
+        self._grid_start_adjoint = grid_start_adjoint
+        self._seed, self._svd_adjoint, self._read_level = seed, svd_adjoint, read_level
+
+    # ------------------------------------------------------------------ one env step
+    def _grid(self, s: int, dt: float) -> None:
+        """Substep s's grid: scatter, gravity, each tool's contact, floor and walls."""
+        self._box(s)
+        self._clear_box()
+        self._p2g(s)
+        self._grid_start()
+        for t in range(self.engine.statics["n_tools"][None]):
+            self._grid_tool(t, (s + 1) * dt)
+        self._grid_end()
+
+    def forward_step(self, state: tuple, tool_row: np.ndarray, dt: float) -> tuple:
+        """Run one env step from ``state`` = (x, v, F, C) with the tool rows (MAX_TOOLS, TS); fills the history
+        and returns the end state (numpy float32)."""
+        n = state[0].shape[0]
+        self.n_p[None] = n
+        self._load(*(np.ascontiguousarray(a, dtype=np.float32) for a in state))
+        self.tool.from_numpy(np.asarray(tool_row, dtype=np.float32))
+        for s in range(self.n_sub):
+            self._trial_svd(s)
+            self._stress(s)
+            self._grid(s, dt)
+            self._g2p(s)
+            self._clear_box()
+        return self._level(self.n_sub, n, grads=False)
+
+    def backward_step(self, grads: tuple, dt: float) -> tuple[tuple, np.ndarray]:
+        """After :meth:`forward_step`: from the gradients of the end state (x, v, F, C) to those of the start
+        state, and of the tool rows (MAX_TOOLS, TS)."""
+        n = int(self.n_p[None])
+        S = self.n_sub
+        self._clear_grads()
+        self._seed(S, *(np.ascontiguousarray(g, dtype=np.float32) for g in grads))
+        n_tools = self.engine.statics["n_tools"][None]
+        for s in reversed(range(S)):
+            self._grid(s, dt)  # rebuild this substep's grid (and zero its gradients)
+            self._g2p.grad(s)
+            self._grid_end.grad()
+            for t in reversed(range(n_tools)):
+                self._grid_tool.grad(t, (s + 1) * dt)
+            self._grid_start_adjoint()
+            self._p2g.grad(s)
+            self._stress.grad(s)
+            self._svd_adjoint(s)
+            self._clear_box()
+        return self._level(0, n, grads=True), self.tool.grad.to_numpy()
+
+    def _level(self, s: int, n: int, grads: bool) -> tuple:
+        out = (np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32), np.zeros((n, 3, 3), np.float32),
+               np.zeros((n, 3, 3), np.float32))
+        self._read_level(s, *out, int(grads))
+        return out
+
+
+_GRAD_ENGINES: dict = {}
+
+
+def grad_engine(sim: Simulator) -> GradEngine:
+    """The differentiable driver for ``sim``'s engine layout and substeps (built, and compiled or loaded from
+    the offline cache, on first use in a process)."""
+    eng = sim._eng
+    key = (id(eng), sim.cfg.substeps)
+    if key not in _GRAD_ENGINES:
+        _GRAD_ENGINES[key] = GradEngine(eng, sim.cfg.substeps)
+    return _GRAD_ENGINES[key]
+
+
+# ---------------------------------------------------------------------- tool kinematics in torch
+def tool_rows(sim: Simulator, actions: Mapping[str, torch.Tensor], poses: Mapping[str, torch.Tensor] | None = None
+              ) -> torch.Tensor:
+    """The kernel's tool rows (T, MAX_TOOLS, TS) of a sequence of actions, as :meth:`Simulator.step` computes
+    them, differentiable with respect to the actions and the initial poses.
+
+    ``actions``: {tool: (T, k) tensor}, k between the tool's required and all channels (clipped to [-1, 1]
+    as ``step`` does); ``poses``: {tool: (6,) tensor (x, y, z, yaw, spin, aperture)} replacing the tool's
+    current state (default: the simulator's). Tools not in ``actions`` stay where they are.
+    """
+    if not actions:
+        raise InputError("rollout needs actions for at least one tool: {tool name: (T, channels) tensor}")
+    poses = dict(poses or {})
+    T = None
+    for name, a in actions.items():
+        sim._check_tool(name)
+        spec = sim._table.spec(name)
+        req = spec.required_action if spec.required_action is not None else spec.action_dim
+        if not isinstance(a, torch.Tensor) or a.ndim != 2 or not req <= a.shape[1] <= spec.action_dim:
+            raise InputError(f"actions['{name}'] must be a (T, k) tensor with k channels of {spec.channels}, got "
+                             f"{getattr(a, 'shape', type(a).__name__)}")
+        if T is not None and a.shape[0] != T:
+            raise InputError(f"actions must all have the same length T; '{name}' has {a.shape[0]}, another {T}")
+        T = a.shape[0]
+        if not torch.isfinite(a).all():
+            raise InputError(f"actions['{name}'] contains NaN or inf")
+    for name, p in poses.items():
+        sim._check_tool(name)
+        if not isinstance(p, torch.Tensor) or p.shape != (6,):
+            raise InputError(f"poses['{name}'] must be a (6,) tensor (x, y, z, yaw, spin, aperture), got "
+                             f"{getattr(p, 'shape', type(p).__name__)}")
+    assert T is not None
+    dtype = torch.float64
+    Tstep = sim.cfg.substeps * sim.params["dt"]
+    cur = {name: (poses[name].to(dtype) if name in poses else torch.as_tensor(sim._tools[name], dtype=dtype))
+           for name in sim.tool_names}
+    zero = torch.zeros((), dtype=dtype)
+    steps = []
+    for k in range(T):
+        rows = [[zero] * TS for _ in range(MAX_TOOLS)]
+        for i, name in enumerate(sim.tool_names):
+            c = cur[name]
+            rows[i][TS_POS:TS_POS + 3] = [c[0], c[1], c[2]]
+            rows[i][TS_YAW], rows[i][TS_AP] = c[3], c[5]
+        for name, a in actions.items():
+            spec = sim._table.spec(name)
+            scales = torch.as_tensor(spec.action_scales[: a.shape[1]], dtype=dtype)
+            ch = dict(zip(spec.channels, torch.clamp(a[k].to(dtype), -1.0, 1.0) * scales))
+            c = cur[name]
+            yaw, spin = c[3], c[4]
+            world = torch.stack([ch.get("x", zero), ch.get("y", zero), ch.get("z", zero)])
+            dyaw = ch.get("yaw", zero)
+            omega = torch.zeros(3, dtype=dtype)
+            if "roll" in spec.channels or "slide" in spec.channels:
+                roll = ch.get("roll", zero)
+                d = torch.stack([torch.cos(yaw), zero, -torch.sin(yaw)])
+                delta = d * ((roll * spec.roll_radius if "roll" in spec.channels else zero) + ch.get("slide", zero)) + world
+                if "roll" in spec.channels:
+                    omega = -roll / Tstep * torch.stack([torch.sin(yaw), zero, torch.cos(yaw)])
+                    spin = spin - roll
+            else:
+                delta = world
+            lo, hi = (torch.as_tensor(b, dtype=dtype) for b in sim._table.bounds(name))
+            target = torch.clamp(c[:3] + delta, lo, hi)
+            omega = omega + torch.stack([zero, dyaw / Tstep, zero])
+            aperture = c[5]
+            if "open" in ch:
+                a_lo, a_hi = sim._table.aperture_range(name)
+                aperture = torch.clamp(c[5] + ch["open"], a_lo, a_hi)
+            vel = (target - c[:3]) / Tstep
+            i = sim._table.index[name]
+            rows[i][TS_VEL:TS_VEL + 3] = [vel[0], vel[1], vel[2]]
+            rows[i][TS_OMEGA:TS_OMEGA + 3] = [omega[0], omega[1], omega[2]]
+            rows[i][TS_YAWRATE] = dyaw / Tstep
+            rows[i][TS_APRATE] = (aperture - c[5]) / Tstep
+            cur[name] = torch.stack([target[0], target[1], target[2], yaw + dyaw, spin, aperture])
+        steps.append(torch.stack([torch.stack(r) for r in rows]))
+    return torch.stack(steps)
+
+
+# ---------------------------------------------------------------------- the autograd bridge
+class _Rollout(torch.autograd.Function):
+    """rows (T, MAX_TOOLS, TS) -> particle positions (T + 1, N, 3) at every env step boundary."""
+
+    @staticmethod
+    def forward(ctx, rows: torch.Tensor, sim: Simulator, start: tuple) -> torch.Tensor:
+        ge = grad_engine(sim)
+        sim._activate()  # the engine's parameter and tool fields hold this simulator's
+        dt = sim.params["dt"]
+        rows_np = rows.detach().cpu().numpy().astype(np.float32)
+        states = [start]
+        bad = sim._eng.bad
+        for k in range(rows_np.shape[0]):
+            sim._eng.reset_bad()
+            states.append(ge.forward_step(states[-1], rows_np[k], dt))
+            counts = bad.to_numpy()
+            if counts.any():
+                raise InputError(f"the rollout diverged in env step {k + 1} ({int(counts[0])} particle updates "
+                                 f"non-finite or too fast, {int(counts[1])} left the unit cube): smaller actions")
+        ctx.sim, ctx.states, ctx.rows = sim, states, rows_np
+        ctx.out_dtype, ctx.device = rows.dtype, rows.device
+        return torch.as_tensor(np.stack([s[0] for s in states]), dtype=torch.float32, device=rows.device)
+
+    @staticmethod
+    def backward(ctx, grad_x: torch.Tensor):
+        sim, states, rows = ctx.sim, ctx.states, ctx.rows
+        ge = grad_engine(sim)
+        sim._activate()
+        dt = sim.params["dt"]
+        gx = grad_x.detach().cpu().numpy().astype(np.float32)
+        n = states[0][0].shape[0]
+        g = (gx[-1].copy(), np.zeros((n, 3), np.float32), np.zeros((n, 3, 3), np.float32),
+             np.zeros((n, 3, 3), np.float32))
+        g_rows = np.zeros(rows.shape, np.float64)
+        for k in reversed(range(rows.shape[0])):
+            ge.forward_step(states[k], rows[k], dt)
+            g, g_rows[k] = ge.backward_step(g, dt)
+            g = (g[0] + gx[k], *g[1:])
+        return torch.as_tensor(g_rows, dtype=ctx.out_dtype, device=ctx.device), None, None
+
+
+def rollout(sim: Simulator, actions: Mapping[str, torch.Tensor], poses: Mapping[str, torch.Tensor] | None = None,
+            every_step: bool = False) -> torch.Tensor:
+    """Simulate ``actions`` from ``sim``'s current state, differentiably; ``sim`` itself does not move.
+
+    Args:
+        sim: the simulator, holding the start state (its particles, tools and parameters).
+        actions: {tool name: (T, k) tensor}, the tool's action channels per env step as
+            :meth:`Simulator.step` takes them; every tool listed moves in every step.
+        poses: {tool name: (6,) tensor (x, y, z, yaw, spin, aperture)}: start poses replacing the simulator's.
+        every_step: return the positions at every env step boundary, (T + 1, N, 3), instead of the final
+            ones, (N, 3).
+
+    Returns the particle positions (float32); ``backward`` on a loss of them fills the gradients of the
+    actions and poses that require them. Forward cost: one simulated step per step plus a copy of the start
+    state per step; backward: one more forward and one adjoint per step. Raises InputError when the
+    rollout diverges (the forward simulator would raise SimulationDiverged).
+    """
+    sim._need_scene()
+    rows = tool_rows(sim, actions, poses)
+    st = sim.get_state()
+    start = (st.x.astype(np.float32), st.v.astype(np.float32), st.F.astype(np.float32), st.C.astype(np.float32))
+    xs = _Rollout.apply(rows, sim, start)
+    return xs if every_step else xs[-1]
+
+
+# ---------------------------------------------------------------------- losses
+def chamfer(x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Symmetric Chamfer distance (mean nearest-neighbour distance both ways) between (N, 3) and (M, 3)."""
+    d = torch.cdist(x, target)
+    return d.min(1).values.mean() + d.min(0).values.mean()
+
+
+def sinkhorn(x: torch.Tensor, target: torch.Tensor, eps: float = 1e-3, iters: int = 100) -> torch.Tensor:
+    """Entropic optimal transport cost (Sinkhorn, log domain) between two uniform clouds (N, 3), (M, 3), with
+    the squared Euclidean ground cost; ``eps`` the entropic blur (smaller: closer to the exact EMD)."""
+    if eps <= 0 or iters < 1:
+        raise InputError(f"sinkhorn needs eps > 0 and iters >= 1, got eps={eps}, iters={iters}")
+    cost = torch.cdist(x, target) ** 2
+    n, m = cost.shape
+    log_a = torch.full((n,), -math.log(n), dtype=cost.dtype, device=cost.device)
+    log_b = torch.full((m,), -math.log(m), dtype=cost.dtype, device=cost.device)
+    f = torch.zeros(n, dtype=cost.dtype, device=cost.device)
+    g = torch.zeros(m, dtype=cost.dtype, device=cost.device)
+    for _ in range(iters):
+        f = -eps * torch.logsumexp(log_b[None, :] + (g[None, :] - cost) / eps, dim=1)
+        g = -eps * torch.logsumexp(log_a[:, None] + (f[:, None] - cost) / eps, dim=0)
+    plan = torch.exp(log_a[:, None] + log_b[None, :] + (f[:, None] + g[None, :] - cost) / eps)
+    return (plan * cost).sum()
+
+
+def gradient(sim: Simulator, actions: Mapping[str, np.ndarray | torch.Tensor], loss: Callable[[torch.Tensor], torch.Tensor],
+             poses: Mapping[str, np.ndarray | torch.Tensor] | None = None, every_step: bool = False
+             ) -> tuple[float, dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """The loss of a rollout and its gradients: ``(loss, {tool: d loss / d actions (T, k)}, {tool: d loss / d
+    start pose (6,)})``. ``loss`` maps the positions (``(N, 3)``, or ``(T + 1, N, 3)`` with ``every_step``) to
+    a scalar tensor, e.g. ``lambda x: chamfer(x, target)``. ``poses`` default to the simulator's tool states;
+    the pose gradient is returned for every simulated tool."""
+    acts = {k: torch.as_tensor(np.asarray(a, dtype=np.float64) if not isinstance(a, torch.Tensor) else a,
+                               dtype=torch.float64).detach().clone().requires_grad_(True) for k, a in actions.items()}
+    base = {name: sim._tools[name] for name in sim.tool_names}
+    if poses:
+        base.update({k: np.asarray(p.detach().numpy() if isinstance(p, torch.Tensor) else p) for k, p in poses.items()})
+    pose_t = {k: torch.as_tensor(np.asarray(p, dtype=np.float64)).requires_grad_(True) for k, p in base.items()}
+    value = loss(rollout(sim, acts, pose_t, every_step=every_step))
+    if not isinstance(value, torch.Tensor) or value.numel() != 1:
+        raise InputError(f"loss must return a scalar tensor, got {getattr(value, 'shape', type(value).__name__)}")
+    value.backward()
+    return (float(value.detach()), {k: (a.grad.numpy() if a.grad is not None else np.zeros(a.shape)) for k, a in acts.items()},
+            {k: (p.grad.numpy() if p.grad is not None else np.zeros(6)) for k, p in pose_t.items()})
