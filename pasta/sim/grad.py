@@ -343,11 +343,44 @@ def grad_engine(sim: Simulator) -> GradEngine:
     return _GRAD_ENGINES[key]
 
 
+class _TorchOps:
+    """:meth:`ToolTable.motion`'s array operations on float64 torch tensors (a scalar may be a plain float)."""
+
+    @staticmethod
+    def _t(v):
+        return v if isinstance(v, torch.Tensor) else torch.tensor(float(v), dtype=torch.float64)
+
+    @staticmethod
+    def cos(v):
+        return torch.cos(_TorchOps._t(v))
+
+    @staticmethod
+    def sin(v):
+        return torch.sin(_TorchOps._t(v))
+
+    @staticmethod
+    def vec(values):
+        return torch.stack([_TorchOps._t(v) for v in values])
+
+    @staticmethod
+    def clip(v, lo, hi):
+        v = _TorchOps._t(v)
+        return torch.clamp(v, torch.as_tensor(lo, dtype=v.dtype), torch.as_tensor(hi, dtype=v.dtype))
+
+    @staticmethod
+    def zeros3():
+        return torch.zeros(3, dtype=torch.float64)
+
+    @staticmethod
+    def add_y(v, value):
+        return v + torch.stack([torch.zeros((), dtype=v.dtype), _TorchOps._t(value), torch.zeros((), dtype=v.dtype)])
+
+
 # ---------------------------------------------------------------------- tool kinematics in torch
 def tool_rows(sim: Simulator, actions: Mapping[str, torch.Tensor], poses: Mapping[str, torch.Tensor] | None = None
               ) -> torch.Tensor:
-    """The kernel's tool rows (T, MAX_TOOLS, TS) of a sequence of actions, as :meth:`Simulator.step` computes
-    them, differentiable with respect to the actions and the initial poses.
+    """The kernel's tool rows (T, MAX_TOOLS, TS) of a sequence of actions, differentiable with respect to the
+    actions and the initial poses: :meth:`Simulator.step`'s kinematics (:meth:`ToolTable.motion`) on torch.
 
     ``actions``: {tool: (T, k) tensor}, k between the tool's required and all channels (clipped to [-1, 1]
     as ``step`` does); ``poses``: {tool: (6,) tensor (x, y, z, yaw, spin, aperture)} replacing the tool's
@@ -390,35 +423,13 @@ def tool_rows(sim: Simulator, actions: Mapping[str, torch.Tensor], poses: Mappin
         for name, a in actions.items():
             spec = sim._table.spec(name)
             scales = torch.as_tensor(spec.action_scales[: a.shape[1]], dtype=dtype)
-            ch = dict(zip(spec.channels, torch.clamp(a[k].to(dtype), -1.0, 1.0) * scales))
-            c = cur[name]
-            yaw, spin = c[3], c[4]
-            world = torch.stack([ch.get("x", zero), ch.get("y", zero), ch.get("z", zero)])
-            dyaw = ch.get("yaw", zero)
-            omega = torch.zeros(3, dtype=dtype)
-            if "roll" in spec.channels or "slide" in spec.channels:
-                roll = ch.get("roll", zero)
-                d = torch.stack([torch.cos(yaw), zero, -torch.sin(yaw)])
-                delta = d * ((roll * spec.roll_radius if "roll" in spec.channels else zero) + ch.get("slide", zero)) + world
-                if "roll" in spec.channels:
-                    omega = -roll / Tstep * torch.stack([torch.sin(yaw), zero, torch.cos(yaw)])
-                    spin = spin - roll
-            else:
-                delta = world
-            lo, hi = (torch.as_tensor(b, dtype=dtype) for b in sim._table.bounds(name))
-            target = torch.clamp(c[:3] + delta, lo, hi)
-            omega = omega + torch.stack([zero, dyaw / Tstep, zero])
-            aperture = c[5]
-            if "open" in ch:
-                a_lo, a_hi = sim._table.aperture_range(name)
-                aperture = torch.clamp(c[5] + ch["open"], a_lo, a_hi)
-            vel = (target - c[:3]) / Tstep
+            vel, omega, yaw_rate, ap_rate, cur[name] = sim._table.motion(
+                name, cur[name], torch.clamp(a[k].to(dtype), -1.0, 1.0) * scales, Tstep, _TorchOps)
             i = sim._table.index[name]
             rows[i][TS_VEL:TS_VEL + 3] = [vel[0], vel[1], vel[2]]
             rows[i][TS_OMEGA:TS_OMEGA + 3] = [omega[0], omega[1], omega[2]]
-            rows[i][TS_YAWRATE] = dyaw / Tstep
-            rows[i][TS_APRATE] = (aperture - c[5]) / Tstep
-            cur[name] = torch.stack([target[0], target[1], target[2], yaw + dyaw, spin, aperture])
+            rows[i][TS_YAWRATE] = yaw_rate + zero
+            rows[i][TS_APRATE] = ap_rate + zero
         steps.append(torch.stack([torch.stack(r) for r in rows]))
     return torch.stack(steps)
 

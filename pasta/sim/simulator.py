@@ -377,10 +377,8 @@ class Simulator:
         clipped), one component per channel of the tool's ``ToolSpec.action``, the optional trailing
         ones may be left out (= 0)}; tools not named stay still.
 
-        Channels (times the channel's scale): x, y, z world translation; yaw about +y; roll by that angle
-        about the local z axis (the tool moves angle * radius along its local x and spins); slide along
-        local x; open: aperture change (clamped to the finger pair's range). Translations are clamped
-        to the tool's allowed box. The tool moves at constant velocity over the env step.
+        Channels (times the channel's scale): see :meth:`ToolTable.motion`. The tool moves at constant
+        velocity over the env step.
         Raises SimulationDiverged (the state is then invalid: reset or set_state)."""
         self._need_scene()
         actions = {} if actions is None else actions
@@ -401,39 +399,13 @@ class Simulator:
             new_tools[name] = cur.copy()
         for name, a in actions.items():
             self._check_tool(name)
-            spec = self._table.spec(name)
-            a = self._action(name, a)
-            ch = dict(zip(spec.channels, a))
-            cur = self._tools[name]
-            yaw = cur[3]
-            spin = cur[4]
-            world = np.array([ch.get("x", 0.0), ch.get("y", 0.0), ch.get("z", 0.0)])
-            dyaw = ch.get("yaw", 0.0)
-            omega = np.zeros(3)
-            if "roll" in spec.channels or "slide" in spec.channels:
-                roll = ch.get("roll", 0.0)
-                d = np.array([math.cos(yaw), 0.0, -math.sin(yaw)])  # local +x in world
-                # written as one sum, as the roller always did: d * (roll * r + slide) + world
-                delta = d * ((roll * spec.roll_radius if "roll" in spec.channels else 0.0) + ch.get("slide", 0.0)) + world
-                if "roll" in spec.channels:
-                    axis = np.array([math.sin(yaw), 0.0, math.cos(yaw)])  # local +z in world
-                    omega = -roll / T * axis
-                    spin = spin - roll
-            else:
-                delta = world
-            lo, hi = self._table.bounds(name)
-            target = np.clip(cur[:3] + delta, lo, hi)
-            omega[1] += dyaw / T
-            aperture = cur[5]
-            if "open" in ch:
-                a_lo, a_hi = self._table.aperture_range(name)
-                aperture = min(max(cur[5] + ch["open"], a_lo), a_hi)
+            vel, omega, yaw_rate, ap_rate, new_tools[name] = self._table.motion(name, self._tools[name],
+                                                                                self._action(name, a), T)
             i = self._table.index[name]
-            tool_arr[i, E.TS_VEL:E.TS_VEL + 3] = (target - cur[:3]) / T
+            tool_arr[i, E.TS_VEL:E.TS_VEL + 3] = vel
             tool_arr[i, E.TS_OMEGA:E.TS_OMEGA + 3] = omega
-            tool_arr[i, E.TS_YAWRATE] = dyaw / T
-            tool_arr[i, E.TS_APRATE] = (aperture - cur[5]) / T
-            new_tools[name] = np.array([*target, yaw + dyaw, spin, aperture])
+            tool_arr[i, E.TS_YAWRATE] = yaw_rate
+            tool_arr[i, E.TS_APRATE] = ap_rate
         self._activate()
         eng = self._eng
         eng.tool.from_numpy(tool_arr)

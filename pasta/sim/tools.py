@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,25 @@ GEO = 8
 BOUND_MARGIN = 0.03
 #: state row of one tool
 STATE_COLS = ("x", "y", "z", "yaw", "spin", "aperture")
+
+
+class NumpyOps:
+    """The array operations :meth:`ToolTable.motion` needs, on numpy (the simulator's); ``pasta.sim.grad`` passes
+    torch ones, so one piece of kinematics serves the forward and the differentiable simulator."""
+
+    cos = staticmethod(math.cos)
+    sin = staticmethod(math.sin)
+    vec = staticmethod(np.array)  # a list of scalars -> a vector
+    clip = staticmethod(np.clip)  # (array or scalar, lo, hi)
+
+    @staticmethod
+    def zeros3() -> np.ndarray:
+        return np.zeros(3)
+
+    @staticmethod
+    def add_y(v: np.ndarray, value: Any) -> np.ndarray:
+        v[1] += value
+        return v
 
 
 def yaw_quat(yaw: float) -> np.ndarray:
@@ -164,6 +184,41 @@ class ToolTable:
         hi = np.full(3, 1.0 - 3 * self.dx)
         lo[1] = self.spec(name).lowest_centre
         return lo, hi
+
+    def motion(self, name: str, cur: Any, a: Any, T: float, ops: Any = NumpyOps) -> tuple:
+        """One env step of tool ``name`` from state row ``cur`` (x, y, z, yaw, spin, aperture) under the action
+        ``a`` (already clipped to [-1, 1] and scaled, one value per leading channel), over an env step of ``T``
+        seconds: returns (linear velocity (3), angular velocity (3, world frame), yaw rate, aperture rate, the
+        new state row (6)). Channels: x, y, z world translation; yaw about +y; roll by that angle about the
+        local z axis (the tool moves angle * radius along its local x and spins); slide along local x; open:
+        aperture change (clamped to the finger pair's range). Translations are clamped to :meth:`bounds`.
+        ``ops``: the array operations (numpy, or torch for gradients)."""
+        spec = self.spec(name)
+        ch = dict(zip(spec.channels, a))
+        yaw, spin = cur[3], cur[4]
+        world = ops.vec([ch.get("x", 0.0), ch.get("y", 0.0), ch.get("z", 0.0)])
+        dyaw = ch.get("yaw", 0.0)
+        omega = ops.zeros3()
+        if "roll" in spec.channels or "slide" in spec.channels:
+            roll = ch.get("roll", 0.0)
+            d = ops.vec([ops.cos(yaw), 0.0, -ops.sin(yaw)])  # local +x in world
+            # written as one sum, as the roller always did: d * (roll * r + slide) + world
+            delta = d * ((roll * spec.roll_radius if "roll" in spec.channels else 0.0) + ch.get("slide", 0.0)) + world
+            if "roll" in spec.channels:
+                axis = ops.vec([ops.sin(yaw), 0.0, ops.cos(yaw)])  # local +z in world
+                omega = -roll / T * axis
+                spin = spin - roll
+        else:
+            delta = world
+        lo, hi = self.bounds(name)
+        target = ops.clip(cur[:3] + delta, lo, hi)
+        omega = ops.add_y(omega, dyaw / T)
+        aperture = cur[5]
+        if "open" in ch:
+            a_lo, a_hi = self.aperture_range(name)
+            aperture = ops.clip(cur[5] + ch["open"], a_lo, a_hi)
+        new = ops.vec([target[0], target[1], target[2], yaw + dyaw, spin, aperture])
+        return (target - cur[:3]) / T, omega, dyaw / T, (aperture - cur[5]) / T, new
 
     def park_row(self, name: str) -> np.ndarray:
         """(6,) state row of the parked tool: its park centre, yaw 0, spin 0, its starting aperture."""
