@@ -14,8 +14,9 @@ SVD of the trial deformation) in fields with gradients; the rollout keeps only e
 step's checkpoint, re-runs its substeps to rebuild the history, then runs the substeps' adjoints in reverse,
 rebuilding each substep's grid before its adjoint (the grid is never stored). Every adjoint kernel is
 Taichi's autodiff of the kernels that :func:`pasta.sim.engine.physics` defines for the forward simulator too,
-except the SVD's, which is written by hand (autodiff through an iterative SVD is slow to compile and
-inaccurate). Every loop that sums into a shared value is serialized, so a gradient is bitwise reproducible.
+except two written by hand: the SVD's (autodiff through an iterative SVD is slow to compile and inaccurate)
+and the grid's momentum-to-velocity step's (autodiff's -mv / m^2 overflows where a stencil barely reaches). On CPU every loop that sums into a shared value is serialized, so a gradient is bitwise reproducible
+(on a GPU they are parallel atomics, as the forward simulator's scatter is there).
 
 The forward simulator (:class:`~pasta.sim.engine.Engine`) is untouched by all this: it has no history and no
 gradient fields, and a process that never asks for a gradient never compiles these kernels.
@@ -72,6 +73,9 @@ class GradEngine:
         params, bad, n_tools = engine.params, engine.bad, engine.statics["n_tools"]
         phys = physics(n, params, tool, engine.statics, differentiable=True)
         inv_dx = float(n)
+        # CPU: loops that sum into shared values run serialized (bitwise reproducible, and the fastest scatter on
+        # CPU); GPU: parallel float atomics, as the forward engine's "atomic" scatter (not bitwise reproducible)
+        serial = engine.scatter_mode == "serial"
 
         @ti.kernel
         def load(xs: ti.types.ndarray(), vs: ti.types.ndarray(), Fs: ti.types.ndarray(),  # type: ignore[valid-type]
@@ -105,17 +109,28 @@ class GradEngine:
 
         @ti.kernel
         def box(s: ti.i32):
-            lo = ti.Vector([n, n, n])
-            hi = ti.Vector([-1, -1, -1])
-            ti.loop_config(serialize=True)
-            for p in range(n_p[None]):
-                base = ti.cast(x[s, p] * inv_dx - 0.5, ti.i32)
-                lo = ti.min(lo, base)
-                hi = ti.max(hi, base + 2)
-            for d in ti.static(range(3)):
-                bbox[d] = lo[d]
-                bbox[3 + d] = hi[d]
-            box_n[None] = ti.max(hi[0] - lo[0] + 1, 0) * ti.max(hi[1] - lo[1] + 1, 0) * ti.max(hi[2] - lo[2] + 1, 0)
+            if ti.static(serial):
+                lo = ti.Vector([n, n, n])
+                hi = ti.Vector([-1, -1, -1])
+                ti.loop_config(serialize=True)
+                for p in range(n_p[None]):
+                    base = ti.cast(x[s, p] * inv_dx - 0.5, ti.i32)
+                    lo = ti.min(lo, base)
+                    hi = ti.max(hi, base + 2)
+                for d in ti.static(range(3)):
+                    bbox[d] = lo[d]
+                    bbox[3 + d] = hi[d]
+            else:
+                for d in ti.static(range(3)):
+                    bbox[d] = n
+                    bbox[3 + d] = -1
+                for p in range(n_p[None]):
+                    base = ti.cast(x[s, p] * inv_dx - 0.5, ti.i32)
+                    for d in ti.static(range(3)):
+                        ti.atomic_min(bbox[d], base[d])
+                        ti.atomic_max(bbox[3 + d], base[d] + 2)
+            box_n[None] = (ti.max(bbox[3] - bbox[0] + 1, 0) * ti.max(bbox[4] - bbox[1] + 1, 0)
+                           * ti.max(bbox[5] - bbox[2] + 1, 0))
 
         @ti.kernel
         def clear_box():
@@ -131,7 +146,7 @@ class GradEngine:
 
         @ti.kernel
         def p2g(s: ti.i32):
-            ti.loop_config(serialize=True)
+            ti.loop_config(serialize=serial)
             for p in range(n_p[None]):
                 phys.scatter(grid, x[s, p], v[s, p], A[s, p])
 
@@ -161,7 +176,7 @@ class GradEngine:
 
         @ti.kernel
         def grid_tool(t: ti.i32, t_now: ti.f32):
-            ti.loop_config(serialize=True)  # the tool's gradient sums over nodes: one order, reproducible
+            ti.loop_config(serialize=serial)  # the tool's gradient sums over nodes: one order, reproducible
             for tt in range(box_n[None]):
                 lo, ext = phys.box_extent(bbox)
                 c = phys.box_node(lo, ext, tt)
@@ -183,7 +198,7 @@ class GradEngine:
 
         @ti.kernel
         def g2p(s: ti.i32):
-            ti.loop_config(serialize=True)  # the grid's gradients sum over particles
+            ti.loop_config(serialize=serial)  # the grid's gradients sum over particles
             for p in range(n_p[None]):
                 new_v, new_C = phys.gather(grid_v, x[s, p])
                 x[s + 1, p], v[s + 1, p], C[s + 1, p] = phys.advance(x[s, p], new_v, new_C, bad)
