@@ -52,7 +52,14 @@ ABLATIONS = (
     ("cut_rearrange", "no gradient (cross-entropy method, 1,024 samples per sequence)", "cut_rearrange_pasta_planner-sampling",
      "planner=sampling", None),
     ("crs", "Flat 3D (the whole scene as one latent)", "crs_flat", "method=flat", (-0.712, 0.00)),
+    ("lift_spread", "SAC-Point (model-free RL, Stable-Baselines3, 50,000 env steps)", "lift_spread_sac-point",
+     "scripts/train_sac.py --task lift_spread --steps 50000", None),
+    ("crs", "SAC-Point (model-free RL, Stable-Baselines3, 50,000 env steps)", "crs_sac-point",
+     "scripts/train_sac.py --task crs --steps 50000", (0.573, 0.00)),
 )
+
+#: methods that plan nothing and load no pasta weights: their rows have no skill set or weights to check
+NOT_PLANNED = ("oracle", "flat", "sac-point")
 
 
 #: the closed loop under disturbance (docs/policies.md): these tasks, each disturbance kind ("": none)
@@ -103,12 +110,12 @@ def stale(summary: dict) -> list[str]:
 def other_weights(summary: dict) -> list[str]:
     """The checkpoints ``summary``'s row was made with that differ from those its settings load now (digests of
     ``model.safetensors``); ``["unrecorded"]`` for a row made before rows recorded their weights (2026-12-05, when the
-    shipped cost model was retrained). Oracle and Flat 3D rows are left out (the scene-level models did not change)."""
+    shipped cost model was retrained). Rows of :data:`NOT_PLANNED` methods are left out (the scene-level models did not change; SAC has its own)."""
     from pasta.io.checkpoint import weights_digest
     from pasta.weights import ROOT as SHIPPED
     from pasta.weights import module_dir
 
-    if summary.get("method") in ("oracle", "flat"):
+    if summary.get("method") in NOT_PLANNED:
         return []
     recorded = summary.get("weights")
     if not recorded:
@@ -136,6 +143,8 @@ def outside_scene(summary: dict) -> list[str]:
 
     from pasta.plugins import get_plugins
 
+    if not summary.get("skills"):  # a method that plans no skills (SAC-Point)
+        return []
     task = get_task(summary["task"])
     scene = resolve_scene(task.scene(), floor_height(int(summary["config"]["sim"]["n_grid"])))
     registered = get_plugins().skills  # a plugin's skill is checked where the plugin is installed
@@ -165,7 +174,7 @@ def table(results: Path = RESULTS) -> str:
         ours_s = f"{heuristic['plan_s_mean']:.1f}" if heuristic else ""
         plan_s = ours_s + (f" / {paper_s:,.0f}" if paper_s else "")
         lines.append(f"| {task} | {_cell(heuristic)} | {_cell(learned)} | {_paper(paper)} | {plan_s} |")
-    lines += ["", "| task | ablation or baseline (heuristic controllers) | ours | paper | settings |",
+    lines += ["", "| task | ablation or baseline (PASTA rows: heuristic controllers) | ours | paper | settings |",
               "|---|---|---:|---:|---|"]
     for task, what, name, settings, paper in ABLATIONS:
         summary = _summary(results, name)
@@ -187,7 +196,8 @@ def table(results: Path = RESULTS) -> str:
               "settings chosen on the validation configs (seeds 2000-2019). The paper evaluated 5 configs per task on "
               "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
               "`execute.controller=learned`; under a disturbance: `disturb=KIND`, closed loop: `execute.loop=closed`); "
-              "its per-episode rows are in `docs/results/`. Plan s: mean planning seconds per episode on one CPU "
+              "its per-episode rows are in `docs/results/` (SAC-Point: the script trains, then scores its policy on the "
+              "same 20 configs; docs/gymnasium.md). Plan s: mean planning seconds per episode on one CPU "
               "thread, as each row's run measured it, on a 2-core machine that up to four runs shared "
               "(`benchmarks/bench_planner.py` times the planner alone)."]
     return _footnoted(lines)

@@ -7,7 +7,8 @@ of the dough and goal clouds, the tool poses as they are), on the all-tools acti
 instances from the environment's training pool (seeds 100000+); the trained policy is then scored on the 20
 fixed test configs (seeds 1000-1019) with deterministic actions, as the results table scores pasta. Writes
 OUT/curve.csv (step, episode improvement), OUT/curve.png, OUT/result.json (mean improvement and success over
-the test configs) and OUT/policy.safetensors (the policy's weights; no pickle).
+the test configs, the settings), OUT/episodes.jsonl (one row per test config, as ``pasta eval`` writes them) and
+OUT/policy.safetensors (the policy's weights; no pickle). A finished run's command run again evaluates it again.
 
 A long run keeps OUT/checkpoint/ (every ``--checkpoint-every`` env steps: the networks, optimisers, entropy
 coefficient and random states as safetensors + JSON, the replay buffer as .npz; no pickle), and the same command
@@ -196,22 +197,28 @@ def make_agent(env: gymnasium.Env, *, seed: int = 0, buffer_size: int = 100_000,
                                                      "net_arch": [256, 256]}, verbose=0)
 
 
-def evaluate(model: SAC, task: str, num: int = 20, points: int = 512) -> dict[str, float]:
+def evaluate(model: SAC, task: str, num: int = 20, points: int = 512) -> tuple[dict, list[dict]]:
+    """The policy (deterministic actions) on the task's first ``num`` fixed test configs: the summary and one row
+    per episode, in the form ``pasta eval`` writes (``docs/results``: ``<task>_sac-point.json`` / ``.jsonl``)."""
     from pasta.tasks import fixed_test_seeds
 
     env = gymnasium.make(f"pasta/{task}-v0", seeds=fixed_test_seeds(num), points=points)
-    improvements, successes = [], []
+    rows = []
     for seed in fixed_test_seeds(num):
         obs, info = env.reset(seed=0, options={"instance": seed})
-        done = False
+        done, steps, t0 = False, 0, time.monotonic()
         while not done:
             action, _ = model.predict(obs, deterministic=True)
             obs, _, terminated, truncated, info = env.step(action)
             done = terminated or truncated
-        improvements.append(info["improvement"])
-        successes.append(info["success"])
-    return {"improvement_mean": float(np.mean(improvements)), "improvement_std": float(np.std(improvements)),
-            "success_rate": float(np.mean(successes)), "configs": num}
+            steps += 1
+        rows.append({"task": task, "method": "sac-point", "seed": int(seed), "improvement": float(info["improvement"]),
+                     "success": bool(info["success"]), "env_steps": steps, "execute_s": round(time.monotonic() - t0, 3)})
+    improvements = [r["improvement"] for r in rows]
+    summary = {"task": task, "method": "sac-point", "split": "test", "episodes": len(rows),
+               "improvement_mean": float(np.mean(improvements)), "improvement_std": float(np.std(improvements)),
+               "success_rate": float(np.mean([r["success"] for r in rows]))}
+    return summary, rows
 
 
 def main() -> None:
@@ -249,9 +256,10 @@ def main() -> None:
     save_file({k: v.detach().cpu().contiguous().clone() for k, v in model.policy.state_dict().items()},
               str(out / "policy.safetensors"))
     write_curve(curve.rows, out / "curve.csv")
-    result = {**settings, "steps": args.steps,
-              **evaluate(model, args.task, args.eval_configs, args.points)}
+    summary, episodes = evaluate(model, args.task, args.eval_configs, args.points)
+    result = {**summary, "settings": {**settings, "steps": args.steps}}
     (out / "result.json").write_text(json.dumps(result, indent=2) + "\n")
+    (out / "episodes.jsonl").write_text("".join(json.dumps(row) + "\n" for row in episodes))
     _plot(curve.rows, out / "curve.png", f"SAC-Point on {args.task}")
     print(json.dumps(result))
 
