@@ -121,7 +121,7 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
     of the env step; ``statics``: the static tool fields by name (``n_tools``, ``tool_kind``, ``tool_geo``,
     ``tool_n_prims``, ``tool_bound2``, ``tool_fric``). Returns a namespace of ``ti.func`` s:
     ``node_velocity(I, mv, t_now)`` (and its three parts ``node_start``, ``node_contact``, ``node_bounds``),
-    ``return_map(sig)``, ``affine(Fp, U, V, s, Cp)``,
+    ``warm_svd(Fp, V)``, ``return_map(sig)``, ``affine(Fp, U, V, s, Cp)``,
     ``scatter(grid, xp, vp, Ap)``, ``gather(grid, xp)``, ``advance(xp, new_v, new_C, bad)``, and the touched-box
     helpers ``box_extent(bbox)``, ``box_node(lo, ext, tt)``.
     ``differentiable``: the variant for reverse-mode autodiff, the same physics: the loop over a tool's
@@ -312,6 +312,50 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         return node_bounds(I, vel)
 
     @ti.func
+    def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
+        """One exact Jacobi rotation zeroing S[p, q]; returns (J^T S J, V J)."""
+        spq = S[p, q]
+        d = 0.5 * (S[q, q] - S[p, p])
+        root = ti.sqrt(d * d + spq * spq)
+        den = d + root if d >= 0 else d - root
+        t = 0.0
+        if ti.abs(den) > 1e-30:
+            t = spq / den
+        c = 1.0 / ti.sqrt(1.0 + t * t)
+        sn = t * c
+        J = ti.Matrix.identity(ti.f32, 3)
+        J[p, p] = c
+        J[q, q] = c
+        J[p, q] = sn
+        J[q, p] = -sn
+        return J.transpose() @ S @ J, V @ J
+
+    @ti.func
+    def warm_svd(Fp, V):
+        """SVD of Fp warm-started from the previous right singular vectors V (a rotation): one
+        cyclic Jacobi sweep on V^T Fp^T Fp V, then Gram-Schmidt on Fp V. F changes by
+        (I + dt C) per substep, so V is already nearly right and one sweep suffices; V is
+        recomputed by a full SVD at the start of every env step (``refresh_svd``). Returns
+        U, sig, V with U and V rotations (sig[2] < 0 for an inverted element), unsorted."""
+        S = V.transpose() @ (Fp.transpose() @ Fp) @ V
+        S, V = jacobi_rotate(S, V, 0, 1)
+        S, V = jacobi_rotate(S, V, 0, 2)
+        S, V = jacobi_rotate(S, V, 1, 2)
+        B = Fp @ V
+        b0 = ti.Vector([B[0, 0], B[1, 0], B[2, 0]])
+        b1 = ti.Vector([B[0, 1], B[1, 1], B[2, 1]])
+        b2 = ti.Vector([B[0, 2], B[1, 2], B[2, 2]])
+        s0 = ti.max(b0.norm(), 1e-12)
+        u0 = b0 / s0
+        b1 = b1 - u0.dot(b1) * u0
+        s1 = ti.max(b1.norm(), 1e-12)
+        u1 = b1 / s1
+        u2 = u0.cross(u1)
+        s2 = u2.dot(b2)
+        U = ti.Matrix.cols([u0, u1, u2])
+        return U, ti.Vector([s0, s1, s2]), V
+
+    @ti.func
     def return_map(sig):
         """Von Mises return mapping on the log singular values: the new singular values, and whether they
         differ from ``sig`` (plastic flow, or an element squeezed below 5 %)."""
@@ -401,7 +445,7 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         """Node number ``tt`` of the box (lo, ext)."""
         return ti.Vector([lo[0] + tt // (ext[1] * ext[2]), lo[1] + (tt // ext[2]) % ext[1], lo[2] + tt % ext[2]])
 
-    return SimpleNamespace(node_velocity=node_velocity, node_start=node_start, node_contact=node_contact,
+    return SimpleNamespace(warm_svd=warm_svd, node_velocity=node_velocity, node_start=node_start, node_contact=node_contact,
                            node_bounds=node_bounds, return_map=return_map, affine=affine, scatter=scatter,
                            gather=gather, advance=advance, box_extent=box_extent, box_node=box_node)
 
@@ -455,56 +499,11 @@ class Engine:
         phys = physics(n, params, self.tool, self.statics)
         serial = scatter == "serial"
 
-        # ---------------------------------------------------------------- constitutive model
-        @ti.func
-        def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
-            """One exact Jacobi rotation zeroing S[p, q]; returns (J^T S J, V J)."""
-            spq = S[p, q]
-            d = 0.5 * (S[q, q] - S[p, p])
-            root = ti.sqrt(d * d + spq * spq)
-            den = d + root if d >= 0 else d - root
-            t = 0.0
-            if ti.abs(den) > 1e-30:
-                t = spq / den
-            c = 1.0 / ti.sqrt(1.0 + t * t)
-            sn = t * c
-            J = ti.Matrix.identity(ti.f32, 3)
-            J[p, p] = c
-            J[q, q] = c
-            J[p, q] = sn
-            J[q, p] = -sn
-            return J.transpose() @ S @ J, V @ J
-
-        @ti.func
-        def warm_svd(Fp, V):
-            """SVD of Fp warm-started from the previous right singular vectors V (a rotation): one
-            cyclic Jacobi sweep on V^T Fp^T Fp V, then Gram-Schmidt on Fp V. F changes by
-            (I + dt C) per substep, so V is already nearly right and one sweep suffices; V is
-            recomputed by a full SVD at the start of every env step (``refresh_svd``). Returns
-            U, sig, V with U and V rotations (sig[2] < 0 for an inverted element), unsorted."""
-            S = V.transpose() @ (Fp.transpose() @ Fp) @ V
-            S, V = jacobi_rotate(S, V, 0, 1)
-            S, V = jacobi_rotate(S, V, 0, 2)
-            S, V = jacobi_rotate(S, V, 1, 2)
-            B = Fp @ V
-            b0 = ti.Vector([B[0, 0], B[1, 0], B[2, 0]])
-            b1 = ti.Vector([B[0, 1], B[1, 1], B[2, 1]])
-            b2 = ti.Vector([B[0, 2], B[1, 2], B[2, 2]])
-            s0 = ti.max(b0.norm(), 1e-12)
-            u0 = b0 / s0
-            b1 = b1 - u0.dot(b1) * u0
-            s1 = ti.max(b1.norm(), 1e-12)
-            u1 = b1 / s1
-            u2 = u0.cross(u1)
-            s2 = u2.dot(b2)
-            U = ti.Matrix.cols([u0, u1, u2])
-            return U, ti.Vector([s0, s1, s2]), V
-
         @ti.func
         def constitutive_p(p):
             """Trial F, return mapping, fixed-corotated stress; writes F[p] and the APIC affine matrix A[p]."""
             Fp = (ti.Matrix.identity(ti.f32, 3) + params[P_DT] * C[p]) @ F[p]
-            U, sig, V = warm_svd(Fp, Vr[p])
+            U, sig, V = phys.warm_svd(Fp, Vr[p])
             Vr[p] = V
             s, _changed = phys.return_map(sig)
             # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly

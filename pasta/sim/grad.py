@@ -70,7 +70,7 @@ class GradEngine:
         x, v, C, F, A, U, sig, V = self.x, self.v, self.C, self.F, self.A, self.U, self.sig, self.V
         grid, levels, grid_v, bbox, box_n = self.grid, self.levels, self.grid_v, self.bbox, self.box_n
         tool, n_p = self.tool, self.n_p
-        params, bad, n_tools = engine.params, engine.bad, engine.statics["n_tools"]
+        params, bad = engine.params, engine.bad
         phys = physics(n, params, tool, engine.statics, differentiable=True)
         inv_dx = float(n)
         # CPU: loops that sum into shared values run serialized (bitwise reproducible, and the fastest scatter on
@@ -90,11 +90,19 @@ class GradEngine:
 
         @ti.kernel
         def trial_svd(s: ti.i32):
+            """The trial deformation's SVD as the forward simulator takes it: warm-started from the previous
+            substep's V (at the env step's start from a full SVD of F)."""
             for p in range(n_p[None]):
                 Fp = (ti.Matrix.identity(ti.f32, 3) + params[P_DT] * C[s, p]) @ F[s, p]
-                Up, Sp, Vp = ti.svd(Fp)
+                Vw = ti.Matrix.identity(ti.f32, 3)
+                if s == 0:
+                    _U0, _S0, V0 = ti.svd(F[0, p])
+                    Vw = V0
+                else:
+                    Vw = V[s - 1, p]
+                Up, Sp, Vp = phys.warm_svd(Fp, Vw)
                 U[s, p] = Up
-                sig[s, p] = ti.Vector([Sp[0, 0], Sp[1, 1], Sp[2, 2]])
+                sig[s, p] = Sp
                 V[s, p] = Vp
 
         @ti.kernel
@@ -172,25 +180,25 @@ class GradEngine:
                     g = levels.grad[0, c[0], c[1], c[2]]
                     u = ti.Vector([gv[0], gv[1], gv[2]]) / gv[3]
                     gu = ti.Vector([g[0], g[1], g[2]]) / gv[3]
-                    grid.grad[c] += ti.Vector([gu[0], gu[1], gu[2], g[3] - gu.dot(u)])
+                    grid.grad[c] = grid.grad[c] + ti.Vector([gu[0], gu[1], gu[2], g[3] - gu.dot(u)])  # no atomic
 
         @ti.kernel
-        def grid_tool(t: ti.i32, t_now: ti.f32):
+        def grid_tool(t: ti.i32, j: ti.i32, t_now: ti.f32):
+            """Tool t's contact, from level j to level j + 1 (the tools that can reach the box, in order)."""
             ti.loop_config(serialize=serial)  # the tool's gradient sums over nodes: one order, reproducible
             for tt in range(box_n[None]):
                 lo, ext = phys.box_extent(bbox)
                 c = phys.box_node(lo, ext, tt)
-                gv = levels[t, c[0], c[1], c[2]]
+                gv = levels[j, c[0], c[1], c[2]]
                 if gv[3] > 0:
                     vel = phys.node_contact(t, c, ti.Vector([gv[0], gv[1], gv[2]]), t_now)
-                    levels[t + 1, c[0], c[1], c[2]] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
+                    levels[j + 1, c[0], c[1], c[2]] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
 
         @ti.kernel
-        def grid_end():
+        def grid_end(last: ti.i32):
             for tt in range(box_n[None]):
                 lo, ext = phys.box_extent(bbox)
                 c = phys.box_node(lo, ext, tt)
-                last = n_tools[None]
                 gv = levels[last, c[0], c[1], c[2]]
                 if gv[3] > 0:
                     vel = phys.node_bounds(c, ti.Vector([gv[0], gv[1], gv[2]]))
@@ -261,8 +269,9 @@ class GradEngine:
                 Gm = ti.Matrix([[gs[0], 0.0, 0.0], [0.0, gs[1], 0.0], [0.0, 0.0, gs[2]]])
                 gFp = Up @ ((Jm + Jm.transpose()) @ Sm + Gm + Sm @ (Km + Km.transpose())) @ Vp.transpose()
                 dt = params[P_DT]
-                C.grad[s, p] += dt * gFp @ F[s, p].transpose()
-                F.grad[s, p] += (ti.Matrix.identity(ti.f32, 3) + dt * C[s, p]).transpose() @ gFp
+                # a particle's own entries: plain adds (`+=` on a field is an atomic, 10x slower here)
+                C.grad[s, p] = C.grad[s, p] + dt * gFp @ F[s, p].transpose()
+                F.grad[s, p] = F.grad[s, p] + (ti.Matrix.identity(ti.f32, 3) + dt * C[s, p]).transpose() @ gFp
 
         @ti.kernel
         def read_level(s: ti.i32, xs: ti.types.ndarray(), vs: ti.types.ndarray(),  # type: ignore[valid-type]
@@ -292,15 +301,24 @@ class GradEngine:
         self._seed, self._svd_adjoint, self._read_level = seed, svd_adjoint, read_level
 
     # ------------------------------------------------------------------ one env step
-    def _grid(self, s: int, dt: float) -> None:
-        """Substep s's grid: scatter, gravity, each tool's contact, floor and walls."""
+    def _grid(self, s: int, dt: float) -> list[int]:
+        """Substep s's grid: scatter, gravity, the contact of each tool that can reach the touched box (in the
+        simulator's order; the others leave every node of it as it is), floor and walls. Returns those tools."""
         self._box(s)
+        t_now = (s + 1) * dt
+        lo, hi = (b * self.engine.dx for b in np.split(self.bbox.to_numpy().astype(np.float64), 2))
+        row = self._row
+        centres = row[:, TS_POS:TS_POS + 3].astype(np.float64) + row[:, TS_VEL:TS_VEL + 3] * t_now
+        gap = np.maximum(lo - centres, 0.0) + np.maximum(centres - hi, 0.0)  # centre to the box, per axis
+        reach = (gap**2).sum(1) < self._bound2
+        active = [t for t in range(self._n_tools) if reach[t]]
         self._clear_box()
         self._p2g(s)
         self._grid_start()
-        for t in range(self.engine.statics["n_tools"][None]):
-            self._grid_tool(t, (s + 1) * dt)
-        self._grid_end()
+        for j, t in enumerate(active):
+            self._grid_tool(t, j, t_now)
+        self._grid_end(len(active))
+        return active
 
     def forward_step(self, state: tuple, tool_row: np.ndarray, dt: float) -> tuple:
         """Run one env step from ``state`` = (x, v, F, C) with the tool rows (MAX_TOOLS, TS); fills the history
@@ -308,7 +326,11 @@ class GradEngine:
         n = state[0].shape[0]
         self.n_p[None] = n
         self._load(*(np.ascontiguousarray(a, dtype=np.float32) for a in state))
-        self.tool.from_numpy(np.asarray(tool_row, dtype=np.float32))
+        self._row = np.asarray(tool_row, dtype=np.float32)
+        self.tool.from_numpy(self._row)
+        statics = self.engine.statics
+        self._n_tools = int(statics["n_tools"][None])
+        self._bound2 = statics["tool_bound2"].to_numpy().astype(np.float64) * (1 + 1e-4)  # the kernel's skip radius
         for s in range(self.n_sub):
             self._trial_svd(s)
             self._stress(s)
@@ -324,13 +346,12 @@ class GradEngine:
         S = self.n_sub
         self._clear_grads()
         self._seed(S, *(np.ascontiguousarray(g, dtype=np.float32) for g in grads))
-        n_tools = self.engine.statics["n_tools"][None]
         for s in reversed(range(S)):
-            self._grid(s, dt)  # rebuild this substep's grid (and zero its gradients)
+            active = self._grid(s, dt)  # rebuild this substep's grid (and zero its gradients)
             self._g2p.grad(s)
-            self._grid_end.grad()
-            for t in reversed(range(n_tools)):
-                self._grid_tool.grad(t, (s + 1) * dt)
+            self._grid_end.grad(len(active))
+            for j, t in reversed(list(enumerate(active))):
+                self._grid_tool.grad(t, j, (s + 1) * dt)
             self._grid_start_adjoint()
             self._p2g.grad(s)
             self._stress.grad(s)
