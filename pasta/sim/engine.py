@@ -123,7 +123,8 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
     ``node_velocity(I, mv, t_now)`` (and its three parts ``node_start``, ``node_contact``, ``node_bounds``),
     ``warm_svd(Fp, V)``, ``return_map(sig)``, ``affine(Fp, U, V, s, Cp)``,
     ``scatter(grid, xp, vp, Ap)``, ``gather(grid, xp)``, ``advance(xp, new_v, new_C, bad)``, and the touched-box
-    helpers ``box_extent(bbox)``, ``box_node(lo, ext, tt)``.
+    helpers ``box_extent(bbox)``, ``box_store(bbox, lo, hi)``, ``box_include(bbox, base)``,
+    ``box_node(lo, ext, tt)``.
     ``differentiable``: the variant for reverse-mode autodiff, the same physics: the loop over a tool's
     primitives unrolled (Taichi's autodiff cannot take a loop whose bound is read inside another loop) and
     every vector length through :func:`length`, whose gradient at zero is zero, not NaN (the friction of a
@@ -441,13 +442,28 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         return lo, ext
 
     @ti.func
+    def box_store(bbox: ti.template(), lo, hi):  # type: ignore[valid-type]  # Taichi's idiom
+        """Write the box (lo, hi inclusive) of touched grid nodes; (n, -1) per axis: empty, for box_include."""
+        for d in ti.static(range(3)):
+            bbox[d] = lo[d]
+            bbox[3 + d] = hi[d]
+
+    @ti.func
+    def box_include(bbox: ti.template(), base):  # type: ignore[valid-type]  # Taichi's idiom
+        """Grow the box by a particle's 3x3x3 stencil at ``base`` (atomics: for a parallel loop)."""
+        for d in ti.static(range(3)):
+            ti.atomic_min(bbox[d], base[d])
+            ti.atomic_max(bbox[3 + d], base[d] + 2)
+
+    @ti.func
     def box_node(lo, ext, tt):
         """Node number ``tt`` of the box (lo, ext)."""
         return ti.Vector([lo[0] + tt // (ext[1] * ext[2]), lo[1] + (tt // ext[2]) % ext[1], lo[2] + tt % ext[2]])
 
     return SimpleNamespace(warm_svd=warm_svd, node_velocity=node_velocity, node_start=node_start, node_contact=node_contact,
                            node_bounds=node_bounds, return_map=return_map, affine=affine, scatter=scatter,
-                           gather=gather, advance=advance, box_extent=box_extent, box_node=box_node)
+                           gather=gather, advance=advance, box_extent=box_extent, box_store=box_store,
+                           box_include=box_include, box_node=box_node)
 
 
 class Engine:
@@ -535,18 +551,11 @@ class Engine:
                     base = phys.scatter(grid, x[p], v[p], A[p])
                     lo = ti.min(lo, base)
                     hi = ti.max(hi, base + 2)
-                for d in ti.static(range(3)):
-                    bbox[d] = lo[d]
-                    bbox[3 + d] = hi[d]
+                phys.box_store(bbox, lo, hi)
             else:
-                for d in ti.static(range(3)):
-                    bbox[d] = n
-                    bbox[3 + d] = -1
+                phys.box_store(bbox, lo, hi)  # empty
                 for p in range(n_p[None]):
-                    base = phys.scatter(grid, x[p], v[p], A[p])
-                    for d in ti.static(range(3)):
-                        ti.atomic_min(bbox[d], base[d])
-                        ti.atomic_max(bbox[3 + d], base[d] + 2)
+                    phys.box_include(bbox, phys.scatter(grid, x[p], v[p], A[p]))
             blo, ext = phys.box_extent(bbox)
             for tt in range(ext[0] * ext[1] * ext[2]):
                 I = phys.box_node(blo, ext, tt)

@@ -117,28 +117,23 @@ class GradEngine:
 
         @ti.kernel
         def box(s: ti.i32):
+            """The box of grid nodes substep s's particles touch (the forward kernel's bookkeeping, without the
+            scatter)."""
+            lo = ti.Vector([n, n, n])
+            hi = ti.Vector([-1, -1, -1])
             if ti.static(serial):
-                lo = ti.Vector([n, n, n])
-                hi = ti.Vector([-1, -1, -1])
                 ti.loop_config(serialize=True)
                 for p in range(n_p[None]):
                     base = ti.cast(x[s, p] * inv_dx - 0.5, ti.i32)
                     lo = ti.min(lo, base)
                     hi = ti.max(hi, base + 2)
-                for d in ti.static(range(3)):
-                    bbox[d] = lo[d]
-                    bbox[3 + d] = hi[d]
+                phys.box_store(bbox, lo, hi)
             else:
-                for d in ti.static(range(3)):
-                    bbox[d] = n
-                    bbox[3 + d] = -1
+                phys.box_store(bbox, lo, hi)  # empty
                 for p in range(n_p[None]):
-                    base = ti.cast(x[s, p] * inv_dx - 0.5, ti.i32)
-                    for d in ti.static(range(3)):
-                        ti.atomic_min(bbox[d], base[d])
-                        ti.atomic_max(bbox[3 + d], base[d] + 2)
-            box_n[None] = (ti.max(bbox[3] - bbox[0] + 1, 0) * ti.max(bbox[4] - bbox[1] + 1, 0)
-                           * ti.max(bbox[5] - bbox[2] + 1, 0))
+                    phys.box_include(bbox, ti.cast(x[s, p] * inv_dx - 0.5, ti.i32))
+            _lo, ext = phys.box_extent(bbox)
+            box_n[None] = ext[0] * ext[1] * ext[2]
 
         @ti.kernel
         def clear_box():
