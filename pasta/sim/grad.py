@@ -24,7 +24,7 @@ gradient fields, and a process that never asks for a gradient never compiles the
 
 
 import math
-from collections.abc import Callable, Mapping  # no `from __future__ import annotations`: Taichi reads kernel annotations
+from collections.abc import Callable, Mapping, Sequence  # no `from __future__ import annotations`: Taichi reads kernel annotations
 
 import numpy as np
 import taichi as ti
@@ -523,8 +523,33 @@ def rollout(sim: Simulator, actions: Mapping[str, torch.Tensor], poses: Mapping[
     state per step; backward: one more forward and one adjoint per step. Raises InputError when the
     rollout diverges (the forward simulator would raise SimulationDiverged).
     """
+    return rollout_rows(sim, tool_rows(sim, actions, poses), every_step=every_step)
+
+
+def chain_rows(sim: Simulator, segments: Sequence[tuple[Mapping[str, torch.Tensor], Mapping[str, torch.Tensor] | None]]
+               ) -> torch.Tensor:
+    """The tool rows (T, MAX_TOOLS, TS) of a chain of tool moves, each ``(actions, poses)`` as
+    :func:`tool_rows` takes them: segment after segment, each starting from its own ``poses`` (a tool
+    teleported between segments, as an executed skill step places its tool and parks it afterwards; a tool
+    a segment gives no pose starts it where ``sim`` has it now). Differentiable like :func:`tool_rows`."""
+    if not segments:
+        raise InputError("chain_rows needs at least one (actions, poses) segment")
+    return torch.cat([tool_rows(sim, actions, poses) for actions, poses in segments])
+
+
+def tool_positions(sim: Simulator, rows: torch.Tensor, name: str) -> torch.Tensor:
+    """``(T, 3)``: the centre of tool ``name`` at the start of each env step of ``rows`` (:func:`tool_rows`)."""
+    sim._check_tool(name)
+    return rows[:, sim._table.index[name], TS_POS:TS_POS + 3]
+
+
+def rollout_rows(sim: Simulator, rows: torch.Tensor, every_step: bool = False) -> torch.Tensor:
+    """:func:`rollout` of given tool rows (:func:`tool_rows`, :func:`chain_rows`): the particle positions,
+    final ``(N, 3)`` or at every env step boundary ``(T + 1, N, 3)``, differentiable with respect to ``rows``."""
     sim._need_scene()
-    rows = tool_rows(sim, actions, poses)
+    if not isinstance(rows, torch.Tensor) or rows.ndim != 3 or tuple(rows.shape[1:]) != (MAX_TOOLS, TS):
+        raise InputError(f"rows must be a (T, {MAX_TOOLS}, {TS}) tensor (tool_rows), got "
+                         f"{getattr(rows, 'shape', type(rows).__name__)}")
     st = sim.get_state()
     start = (st.x.astype(np.float32), st.v.astype(np.float32), st.F.astype(np.float32), st.C.astype(np.float32))
     xs = _Rollout.apply(rows, sim, start)
@@ -538,22 +563,41 @@ def chamfer(x: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
     return d.min(1).values.mean() + d.min(0).values.mean()
 
 
-def sinkhorn(x: torch.Tensor, target: torch.Tensor, eps: float = 1e-3, iters: int = 100) -> torch.Tensor:
-    """Entropic optimal transport cost (Sinkhorn, log domain) between two uniform clouds (N, 3), (M, 3), with
-    the squared Euclidean ground cost; ``eps`` the entropic blur (smaller: closer to the exact EMD)."""
-    if eps <= 0 or iters < 1:
-        raise InputError(f"sinkhorn needs eps > 0 and iters >= 1, got eps={eps}, iters={iters}")
-    cost = torch.cdist(x, target) ** 2
+def _entropic_ot(x: torch.Tensor, y: torch.Tensor, eps: float, iters: int, p: int) -> torch.Tensor:
+    """Entropic OT between uniform clouds with the cost |x - y|^p: its dual value, with the gradient of the
+    converged problem (envelope theorem: the potentials are solved without a graph, the transport plan then
+    weighs the cost's gradient), so the backward pass costs one cost matrix, not ``iters`` unrolled iterations."""
+    diff = x[:, None, :] - y[None, :, :]
+    sq = (diff ** 2).sum(-1)
+    cost = sq if p == 2 else torch.sqrt(sq + 1e-12)  # the offset: a finite gradient where two points coincide
     n, m = cost.shape
     log_a = torch.full((n,), -math.log(n), dtype=cost.dtype, device=cost.device)
     log_b = torch.full((m,), -math.log(m), dtype=cost.dtype, device=cost.device)
-    f = torch.zeros(n, dtype=cost.dtype, device=cost.device)
-    g = torch.zeros(m, dtype=cost.dtype, device=cost.device)
-    for _ in range(iters):
-        f = -eps * torch.logsumexp(log_b[None, :] + (g[None, :] - cost) / eps, dim=1)
-        g = -eps * torch.logsumexp(log_a[:, None] + (f[:, None] - cost) / eps, dim=0)
-    plan = torch.exp(log_a[:, None] + log_b[None, :] + (f[:, None] + g[None, :] - cost) / eps)
-    return (plan * cost).sum()
+    c = cost.detach()
+    with torch.no_grad():
+        f = torch.zeros(n, dtype=cost.dtype, device=cost.device)
+        g = torch.zeros(m, dtype=cost.dtype, device=cost.device)
+        for _ in range(iters):
+            f = -eps * torch.logsumexp(log_b[None, :] + (g[None, :] - c) / eps, dim=1)
+            g = -eps * torch.logsumexp(log_a[:, None] + (f[:, None] - c) / eps, dim=0)
+        plan = torch.exp(log_a[:, None] + log_b[None, :] + (f[:, None] + g[None, :] - c) / eps)
+        value = (log_a.exp() * f).sum() + (log_b.exp() * g).sum()
+    weighted = (plan * cost).sum()
+    return value + weighted - weighted.detach()
+
+
+def sinkhorn(x: torch.Tensor, target: torch.Tensor, eps: float = 1e-4, iters: int = 200, p: int = 2) -> torch.Tensor:
+    """The Sinkhorn divergence between two uniform clouds (N, 3), (M, 3) with the ground cost |x - y|^p (p = 1:
+    the Euclidean distance, an EMD as the tasks score it; p = 2: its square): OT(x, target) - OT(x, x) / 2 -
+    OT(target, target) / 2 with OT the entropic transport (log domain, ``iters`` iterations, blur ``eps`` in the
+    cost's units, metres^p; smaller: closer to the exact transport, slower to converge). The
+    debiasing terms make it zero when the clouds are equal: plain entropic OT is smallest for a cloud shrunk
+    toward the target's centre (it sees every pair at a large blur), which an optimiser then finds. A pure
+    translation by d costs |d|^p."""
+    if eps <= 0 or iters < 1 or p not in (1, 2):
+        raise InputError(f"sinkhorn needs eps > 0, iters >= 1 and p 1 or 2, got eps={eps}, iters={iters}, p={p}")
+    return (_entropic_ot(x, target, eps, iters, p) - 0.5 * _entropic_ot(x, x, eps, iters, p)
+            - 0.5 * _entropic_ot(target, target, eps, iters, p))
 
 
 def gradient(sim: Simulator, actions: Mapping[str, np.ndarray | torch.Tensor], loss: Callable[[torch.Tensor], torch.Tensor],

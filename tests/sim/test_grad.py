@@ -136,11 +136,24 @@ def test_losses():
     a = torch.as_tensor(rng.uniform(size=(200, 3)), dtype=torch.float64)
     b = a + torch.tensor([0.05, 0.0, 0.0], dtype=torch.float64)
     assert float(chamfer(a, a)) < 1e-6 and float(chamfer(a, b)) > 0.04  # cdist rounds at 1e-8
-    # a pure translation: the transport cost is the squared shift, (approximately) whatever the blur
-    assert float(sinkhorn(a, b, eps=1e-4, iters=300)) == pytest.approx(0.05**2, rel=0.05)
+    # a pure translation: the divergence is the squared shift, whatever the blur (the debiasing cancels it)
+    for eps in (1e-3, 1e-4):
+        assert float(sinkhorn(a, b, eps=eps, iters=300)) == pytest.approx(0.05**2, rel=0.02)
+    # zero for equal clouds; a cloud shrunk toward the target's centre costs more than the target itself (plain
+    # entropic OT at a large blur prefers the shrunk one, which an optimiser would find)
+    shrunk = (a - a.mean(0)) * 0.5 + a.mean(0)
+    assert abs(float(sinkhorn(a, a, eps=1e-2))) < 1e-12 and float(sinkhorn(shrunk, a, eps=1e-2)) > 1e-3
     moved = a.clone().requires_grad_(True)
     sinkhorn(moved, b, eps=1e-3).backward()
     assert float(moved.grad[:, 0].sum()) < 0  # moving the cloud towards +x lowers the cost
+    # the gradient (envelope theorem, no unrolled iterations) against a central finite difference
+    target = b + torch.as_tensor(rng.normal(scale=0.01, size=b.shape))
+    moved = a.clone().requires_grad_(True)
+    sinkhorn(moved, target, eps=1e-3).backward()
+    step = torch.zeros_like(a)
+    step[7, 0] = 1e-5
+    fd = (float(sinkhorn(a + step, target, eps=1e-3)) - float(sinkhorn(a - step, target, eps=1e-3))) / 2e-5
+    assert float(moved.grad[7, 0]) == pytest.approx(fd, rel=0.02)
     with pytest.raises(InputError, match="eps"):
         sinkhorn(a, b, eps=0.0)
 
