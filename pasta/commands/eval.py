@@ -25,7 +25,7 @@ from typing import Any
 from pasta.core.errors import ConfigError
 from pasta.core.files import OutputLock, append_text, refuse_link, write_json
 
-HELP = "evaluate a method on a task's fixed test set (task=T [method=pasta|flat|oracle] num=20 [key=value ...])"
+HELP = "evaluate a method on a task's fixed test set (task=T [method=pasta|flat|oracle|trajopt] num=20 [key=value ...])"
 
 EPILOG = """examples:
   pasta eval task=crs num=20
@@ -33,6 +33,7 @@ EPILOG = """examples:
   pasta eval task=crs_twice num=20                       # receding horizon with the given skeleton, as in the paper
   pasta eval task=crs horizon=5 num=20                   # a longer planning horizon than the task needs
   pasta eval task=cut_rearrange method=oracle num=20     # the ground-truth chain with the heuristic controllers
+  pasta eval task=crs method=trajopt num=5               # Traj-Opt: gradient descent on the chain's actions
   pasta eval task=crs skills=cut,push,roll               # plan with these skills only
   pasta eval task=crs_distractors num=10 task.distractors=4   # a task setting: its own instances and result file
   pasta eval task=crs workers=2                          # two episodes at a time, in local worker processes
@@ -44,8 +45,8 @@ for execute.controller=X). The result file is OUT/<task>_<method>[_<setting>...]
 settings given; a file of other settings is never resumed.
 deadline_s (workers or Ray only): seconds a worker may spend on one episode before it is killed (Ray: its task
 cancelled) and the episode retried once, then reported as failed; 0 (the default) derives it from the task:
-10 min of start-up and kernel compile, 200 s of planning per horizon step (none for method=oracle) and 1 s per
-simulator step the episode may take at most (instance generation, then every step, 1 + execute.retries times, at
+10 min of start-up and kernel compile, 200 s of planning per horizon step (none for method=oracle|trajopt) and 1 s per
+simulator step (a Traj-Opt iteration counts 8 per env step of its chain) the episode may take at most (instance generation, then every step, 1 + execute.retries times, at
 the longest max_steps of the skills planned with + execute.overrun + execute.idle_steps); crs: about 50 min."""
 
 
@@ -162,6 +163,10 @@ def eval_job(state: EvalState, seed: int, attempt: int) -> dict[str, Any]:
             "provenance": state.machine}
 
 
+#: what one env step of a Traj-Opt iteration (rollout and backward) costs in forward simulator steps
+#: (benchmarks/bench_grad.py: 5.6-8x)
+GRADIENT_STEPS = 8
+
 #: the default deadline's planning allowance per horizon step (a crs plan takes 5-130 s on a 2-core machine)
 PLAN_S = 200.0
 
@@ -169,7 +174,8 @@ PLAN_S = 200.0
 def episode_deadline(session: Any) -> float:
     """The default ``deadline_s`` of ``pasta eval``: the most simulator steps an episode of ``session`` may
     take, sized by :func:`pasta.distributed.sized_deadline`, plus :data:`PLAN_S` per horizon step (none for
-    the oracle, which does not plan). The steps: generating the instance (the task's chain, on a cold task
+    the oracle and Traj-Opt, which do not plan; Traj-Opt's iterations count as :data:`GRADIENT_STEPS` steps per
+    env step of its chain). The steps: generating the instance (the task's chain, on a cold task
     cache) and executing ``horizon`` steps, each up to ``1 + execute.retries`` times, every skill run at the
     longest step limit (``skill.<name>.max_steps``) of the skills planned with (the oracle: the task's
     chain) plus ``execute.overrun`` and ``execute.idle_steps``."""
@@ -186,7 +192,10 @@ def episode_deadline(session: Any) -> float:
     idle, settle = int(getattr(tcfg, "idle_steps", 10)), int(getattr(tcfg, "settle_steps", 10))
     generate = settle + len(task.skeleton) * (longest + idle)
     execute = horizon * (1 + int(exe.retries)) * (longest + int(exe.overrun) + int(exe.idle_steps))
-    plan = 0.0 if str(cfg.method) == "oracle" else PLAN_S * horizon
+    plan = 0.0 if str(cfg.method) in ("oracle", "trajopt") else PLAN_S * horizon
+    if str(cfg.method) == "trajopt":  # each iteration a rollout and its backward: ~8 forward steps per env step
+        chain = len(task.skeleton) * int(cfg.trajopt.steps)
+        execute = chain + idle + GRADIENT_STEPS * int(cfg.trajopt.iterations) * chain
     return sized_deadline(generate + execute, int(getattr(tcfg, "n_particles", STEP_PARTICLES)), plan)
 
 

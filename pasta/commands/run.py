@@ -25,12 +25,13 @@ EPILOG = """examples:
   pasta run task=crs seed=1000 log=runs/crs.mcap summary=runs/crs.png
   pasta run task=crs seed=1000 execute.controller=learned models=models   # your own `pasta train` root
   pasta run task=crs seed=1000 method=flat                    # the Flat 3D baseline
+  pasta run task=crs seed=1000 method=trajopt                 # Traj-Opt: gradient descent through the simulator
   pasta run task=crs seed=3 planner=sampling
   pasta run task=crs seed=1000 skills=cut,push,roll           # plan with these skills only
   pasta run task=crs_distractors seed=1000 task.distractors=4 # a task setting
 keys of this command: log=FILE.mcap summary=FILE.png log_time=sim|wall; every other key=value is a run-config key (`pasta config
 task=crs` lists them: seed, method, models, horizon, skills, skeleton, planner, planner.*, perception.*,
-check.*, execute.*, sim.*, skill.<name>.*, task.*). controller=X is short for execute.controller=X."""
+check.*, execute.*, trajopt.*, sim.*, skill.<name>.*, task.*). controller=X is short for execute.controller=X."""
 
 
 @dataclass
@@ -142,6 +143,12 @@ def run(args: argparse.Namespace) -> int:
                     print(f"  closed loop: {d['decision']}{new} ({d['reason']}; {d['seconds']:.1f} s)")
         if out.result.diverged:
             print(f"simulation diverged: {out.result.diverged}", file=sys.stderr)
+    opt = out.info.get("trajopt")
+    if opt:
+        best = opt["best_iteration"]
+        print(f"  Traj-Opt ({' -> '.join(opt['skills'])}): {len(opt['losses'])} iterations in {out.plan_s:.0f} s, loss "
+              f"{opt['losses'][0]:.4f} -> {opt['losses'][-1]:.4f}, executed the best (iteration {best}, loss "
+              f"{opt['losses'][best]:.4f})")
     verdict = "success" if out.success else "failure"
     print(f"task {session.task.name} seed {seed} ({session.method}): normalised improvement {out.improvement:.3f} "
           f"({verdict}, threshold {session.task.threshold})")

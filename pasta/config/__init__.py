@@ -37,7 +37,7 @@ __all__ = ["GROUPS", "MAX_HORIZON", "CheckConfig", "ExecuteConfig", "PerceptionC
 #: config key -> plugin registry kind whose names it accepts
 GROUPS: dict[str, str] = {"planner": "planner", "encoder": "encoder", "cost_model": "cost_model", "task": "task"}
 #: sections built from a dataclass of their own (checked by building them)
-SECTIONS = ("perception", "check", "execute", "sim")
+SECTIONS = ("perception", "check", "execute", "trajopt", "sim")
 #: the deepest planning horizon a command accepts (``pasta plan``, ``pasta run``, ``pasta eval``): the skeleton
 #: enumeration grows with K**H
 MAX_HORIZON = 10

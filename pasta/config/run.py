@@ -21,11 +21,12 @@ from typing import Any
 from pasta.core.errors import ConfigError
 from pasta.sim.config import SimConfig
 
-__all__ = ["CONTROLLERS", "CheckConfig", "ExecuteConfig", "GOAL_MODES", "METHODS", "PerceptionConfig", "RunConfig"]
+__all__ = ["CONTROLLERS", "CheckConfig", "ExecuteConfig", "GOAL_MODES", "METHODS", "PerceptionConfig", "RunConfig", "TrajOptConfig"]
 
 #: ``method``: PASTA (entity latents, the configured planner), the Flat 3D baseline (the whole scene as one
-#: latent, ``MODELS/flat``), or the oracle (the task's ground-truth chain with the heuristic controllers)
-METHODS = ("pasta", "flat", "oracle")
+#: latent, ``MODELS/flat``), the oracle (the task's ground-truth chain with the heuristic controllers), or Traj-Opt
+#: (gradient descent on the ground-truth chain's actions through the simulator, :class:`TrajOptConfig`)
+METHODS = ("pasta", "flat", "oracle", "trajopt")
 #: ``execute.controller``: a skill's heuristic point-cloud controller, or its learned policy
 CONTROLLERS = ("heuristic", "learned")
 #: ``execute.goal``: how a step's goal pieces are made (:mod:`pasta.execute.goals`)
@@ -171,6 +172,43 @@ class ExecuteConfig:
 
 
 @dataclass
+class TrajOptConfig:
+    """The Traj-Opt baseline (``method=trajopt``, ``trajopt.<key>=``; :mod:`pasta.execute.trajopt`): Adam on the
+    whole action sequence of the task's ground-truth tool chain, through the differentiable simulator.
+
+    Attributes:
+        iterations: gradient steps per episode (each a rollout and its backward pass: ~0.2 s per env step at
+            5,000 particles on 2 cores, so ~30 s an iteration for a 3-skill chain). The paper ran 200; the
+            shipped rows ran 10 (docs/simulator.md, "Traj-Opt").
+        lr: Adam's learning rate on actions in [-1, 1] (paper: 0.01-0.02 with 200 iterations).
+        steps: env steps per skill of the chain (paper: 50).
+        points: particles in the loss, drawn once per episode (paper: 500).
+        blur: the Sinkhorn loss's entropic blur in metres (:func:`pasta.sim.grad.sinkhorn`'s ``eps`` with ``p=1``, the
+            tasks' EMD; paper: geomloss, p = 1, blur 0.001).
+        contact: weight of the contact term (the squared distance from the active tool's centre to the nearest
+            loss particle, summed over its steps), which pulls a tool that touches nothing toward the dough
+            (paper: 1e-3).
+    """
+
+    iterations: int = 10
+    lr: float = 0.1
+    steps: int = 50
+    points: int = 500
+    blur: float = 1e-3
+    contact: float = 1e-3
+
+    def __post_init__(self) -> None:
+        from pasta.config.validate import check_int, check_number
+
+        check_int(self.iterations, "trajopt.iterations", low=0, high=100_000)
+        check_number(self.lr, "trajopt.lr", low=0.0, low_open=True, high=10.0)
+        check_int(self.steps, "trajopt.steps", low=1, high=10_000)
+        check_int(self.points, "trajopt.points", low=8, high=1_000_000)
+        check_number(self.blur, "trajopt.blur", low=0.0, low_open=True)
+        check_number(self.contact, "trajopt.contact", low=0.0)
+
+
+@dataclass
 class RunConfig:
     """Root of the run configuration (see the module docstring).
 
@@ -207,5 +245,6 @@ class RunConfig:
     perception: PerceptionConfig = field(default_factory=PerceptionConfig)
     check: CheckConfig = field(default_factory=CheckConfig)
     execute: ExecuteConfig = field(default_factory=ExecuteConfig)
+    trajopt: TrajOptConfig = field(default_factory=TrajOptConfig)
     sim: SimConfig = field(default_factory=SimConfig)
     skill: Any = None

@@ -8,7 +8,9 @@ per seed. Methods (``method=``, :data:`pasta.config.run.METHODS`):
   crs_twice plans with the receding-horizon planner and its skeleton given, as in the paper), the shipped
   or given weights;
 - ``flat``: the Flat 3D baseline: the whole scene as one latent (``MODELS/flat``), skills 1 -> 1;
-- ``oracle``: no planning: the task's ground-truth skill chain with the heuristic controllers.
+- ``oracle``: no planning: the task's ground-truth skill chain with the heuristic controllers;
+- ``trajopt``: no planning: Adam on the ground-truth tool chain's actions through the differentiable simulator
+  (:mod:`pasta.execute.trajopt`, ``trajopt.*``).
 
 Python use::
 
@@ -26,7 +28,10 @@ from typing import Any
 
 from pasta.core.errors import ConfigError
 
-__all__ = ["EpisodeOutcome", "Session", "as_overrides", "build_session"]
+__all__ = ["NO_PLANNER", "EpisodeOutcome", "Session", "as_overrides", "build_session"]
+
+#: methods that run the task's ground-truth chain: no planner, skill set or weights
+NO_PLANNER = ("oracle", "trajopt")
 
 
 @dataclass
@@ -120,12 +125,12 @@ class Session:
         the models and skills used, and how the feasibility networks were trained."""
         from omegaconf import OmegaConf
 
-        oracle = self.method == "oracle"
+        chain = self.method in NO_PLANNER
         return {"task": self.task.name, "method": self.method,
-                "planner": None if oracle else self.planner_name,
-                "controller": "heuristic" if oracle else self.exe.controller,
+                "planner": None if chain else self.planner_name,
+                "controller": {"oracle": "heuristic", "trajopt": "trajopt"}.get(self.method, self.exe.controller),
                 "horizon": self.horizon, "models": str(self.models),
-                "skills": list(self.task.skeleton) if oracle else [sk.name for sk in self.skills],
+                "skills": list(self.task.skeleton) if chain else [sk.name for sk in self.skills],
                 "scene": self.skill_choice.record() if self.skill_choice is not None else None,
                 "weights": self.weights_record(),
                 "config": OmegaConf.to_container(self.cfg, resolve=True),
@@ -138,7 +143,7 @@ class Session:
         from pasta.io.checkpoint import weights_digest
         from pasta.weights import module_dir
 
-        if self.method in ("oracle", "flat"):
+        if self.method in (*NO_PLANNER, "flat"):
             return {}
         dirs = {"encoder": self.cfg.encoder.weights, "cost": self.cfg.cost_model.weights}
         for sk in self.skills:
@@ -152,7 +157,7 @@ class Session:
         (``hard_per_positive``, ``shift_per_positive`` of its checkpoint; skills without one are left out), so a
         summary tells an ablation's networks (e.g. no hard negatives) from the shipped ones."""
         out: dict[str, dict[str, Any]] = {}
-        if self.method == "oracle":
+        if self.method in NO_PLANNER:
             return out
         for sk in self.skills:
             train = getattr(getattr(sk, "feasibility_model", None), "train_settings", None)
@@ -205,6 +210,17 @@ class Session:
             res = run_oracle(self.task, inst, sim=sim)
             return EpisodeOutcome(self.task.name, self.method, seed, float(res.score.improvement),
                                   bool(res.score.success), execute_s=res.wall_s, final_dough=sim.observe().dough)
+        if self.method == "trajopt":
+            from pasta.config import section
+            from pasta.execute.trajopt import run_trajopt
+
+            opt = run_trajopt(self.task, inst, section(self.cfg, "trajopt"), sim=sim, seed=seed)
+            info = {"trajopt": {"losses": [round(v, 8) for v in opt.losses], "best_iteration": opt.best_iteration,
+                                "improvements": [round(v, 4) for v in opt.improvements],
+                                "skills": [s.skill for s in opt.segments]}}
+            return EpisodeOutcome(self.task.name, self.method, seed, float(opt.score.improvement),
+                                  bool(opt.score.success), plan_s=opt.optimise_s, execute_s=opt.execute_s,
+                                  final_dough=sim.observe().dough, info=info)
         sim.set_state(inst.init)
         episode = run_episode(sim, inst.goal, planner=self.planner, planner_name=self.planner_name, skills=self.skills,
                               encoder=self.encoder, cost=self.cost, horizon=self.horizon, seed=seed,
@@ -269,7 +285,7 @@ def build_session(task: str | None = None, overrides: Sequence[str] = (), *, plu
         raise ConfigError(f"horizon={horizon}: skeleton=task plans the task's {task_obj.horizon}-step chain "
                           f"({','.join(task_obj.skeleton)}); omit horizon= or give horizon<={task_obj.horizon}")
     session = Session(task_obj, cfg, root, horizon)
-    if cfg.method == "oracle":
+    if cfg.method in NO_PLANNER:
         return session
     from pasta.execute.skillset import choose_skills, needs_feasibility_network
 

@@ -19,7 +19,7 @@ import numpy as np
 from pasta.core import Controller, InputError, Skill, SkillObservation, StepMonitor, Stop, ToolPose, stop_reason
 from pasta.core.metrics import chamfer
 
-__all__ = ["GoalMonitor", "SkillRun", "Trajectory", "piece_indices", "run_skill", "skill_observation"]
+__all__ = ["GoalMonitor", "SkillRun", "Trajectory", "approach_pose", "piece_indices", "run_skill", "skill_observation"]
 
 
 @dataclass
@@ -220,6 +220,16 @@ def skill_observation(obs: Any, tool: str, idx: np.ndarray, goal: np.ndarray | N
     )
 
 
+def approach_pose(skill: Skill, piece: np.ndarray, goal: np.ndarray | None, *, scene: np.ndarray) -> ToolPose:
+    """The skill's start pose for ``piece (P, 3)`` towards ``goal (G, 3)`` in ``scene (S, 3)``: ``scene=`` goes
+    beyond the contract's two arguments, so a skill whose ``approach_pose`` takes only those is asked without
+    it. A ``None`` goal reaches only skills that take one (heuristic controllers run with a sub-goal)."""
+    try:
+        return skill.approach_pose(piece, goal, scene=scene)  # type: ignore[call-arg,arg-type]
+    except TypeError:  # a skill whose approach_pose has the two-argument contract signature
+        return skill.approach_pose(piece, goal)  # type: ignore[arg-type]
+
+
 def run_skill(
     sim: Any,
     skill: Skill,
@@ -267,12 +277,7 @@ def run_skill(
         # a controller with its own (learned) start pose; None falls back to the skill's
         approach = own_approach(obs.dough[idx], goal_points, scene=obs.dough)
     if approach is None:
-        # scene= goes beyond the contract's two arguments (the TypeError fallback); a None goal reaches only
-        # skills that take one (heuristic controllers run with a sub-goal)
-        try:
-            approach = skill.approach_pose(obs.dough[idx], goal_points, scene=obs.dough)  # type: ignore[call-arg,arg-type]
-        except TypeError:  # a skill whose approach_pose has the two-argument contract signature
-            approach = skill.approach_pose(obs.dough[idx], goal_points)  # type: ignore[arg-type]
+        approach = approach_pose(skill, obs.dough[idx], goal_points, scene=obs.dough)
     sim.set_tool_pose(tool, approach.position, yaw=approach.yaw)
     obs = sim.observe()
     traj = Trajectory() if record else None
