@@ -71,7 +71,8 @@ def test_contact_pulls_the_knife_down_to_the_dough(crs):
     """Zero actions touch nothing, so the shape loss has no gradient; the contact term's does: the knife,
     above the dough, is pulled down (d loss / d vertical action > 0 in every step but the last, whose motion
     ends after the last distance measured at a step's start)."""
-    from pasta.execute.trajopt import _contact, chain_segments
+    from pasta.execute.trajopt import chain_segments
+    from pasta.sim.trajopt import _contact
     from pasta.sim.grad import chain_rows, rollout_rows
 
     task, inst, sim = crs
