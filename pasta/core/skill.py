@@ -182,6 +182,8 @@ class Skill:
     training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
     #: the hooks that making demonstrations needs (see :meth:`has_expert`)
     DEMO_HOOKS: ClassVar[tuple[str, ...]] = ("demo_scene", "sample_expert_params", "expert_approach_pose", "expert")
+    #: the hooks that demonstrations by trajectory optimisation need instead of a scripted expert (:meth:`has_gbto`)
+    GBTO_HOOKS: ClassVar[tuple[str, ...]] = ("demo_scene", "demo_target")
 
     def __init__(self, config: Any = None) -> None:
         if not isinstance(getattr(type(self), "spec", None), SkillSpec):
@@ -313,6 +315,27 @@ class Skill:
         loaded, before it settles. Default: none. (An override without the ``variant`` argument is called
         without it.)"""
         return {}
+
+    def demo_target(self, dough: np.ndarray, rng: np.random.Generator, variant: str = "default") -> np.ndarray:
+        """What a demonstration made by gradient-based trajectory optimisation (``pasta demos expert=trajopt``,
+        for a skill without a scripted expert) should leave: the dough ``(G, 3)`` after the step, for the settled
+        demonstration scene ``dough (P, 3)`` (all its pieces). Draw every random number from ``rng``. The tool
+        starts at :meth:`approach_pose` ``(dough, target)``; the optimiser then looks for the actions whose
+        result is closest to the target (a Sinkhorn divergence), so a target the tool can reach in the skill's
+        way (a piece moved, split or flattened as the tool would) makes demonstrations of that skill."""
+        raise self._missing("demonstration target", "the skill plugin does not define `demo_target`")
+
+    @classmethod
+    def missing_gbto_hooks(cls) -> list[str]:
+        """The hooks of :attr:`GBTO_HOOKS` this class does not override (empty: trajectory optimisation can make
+        its demonstrations)."""
+        return [h for h in cls.GBTO_HOOKS if getattr(cls, h) is getattr(Skill, h)]
+
+    @classmethod
+    def has_gbto(cls) -> bool:
+        """Whether demonstrations can be made by trajectory optimisation: the class overrides ``demo_scene`` and
+        ``demo_target`` (and :meth:`approach_pose`, which every skill that runs has)."""
+        return not cls.missing_gbto_hooks()
 
     @classmethod
     def missing_demo_hooks(cls) -> list[str]:

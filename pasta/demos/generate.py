@@ -1,8 +1,13 @@
-"""Demonstration generation: scripted experts with random parameters on the scenes their skills draw.
+"""Demonstration generation: scripted experts with random parameters on the scenes their skills draw, or
+gradient-based trajectory optimisation (GBTO) toward the targets they draw.
 
 Any registered skill whose plugin defines the demonstration hooks (:meth:`pasta.core.Skill.has_expert`:
 ``demo_scene``, ``sample_expert_params``, ``expert_approach_pose``, ``expert``) can make demonstrations;
-the scene (``n_in`` boxes of dough) comes from its ``demo_scene``, see :mod:`pasta.demos.scene`.
+the scene (``n_in`` boxes of dough) comes from its ``demo_scene``, see :mod:`pasta.demos.scene`. A skill without
+a scripted expert that defines ``demo_target`` (:meth:`pasta.core.Skill.has_gbto`) makes them by GBTO
+(``expert=trajopt``, the default for such a skill): from its approach pose toward the drawn target, Adam on
+``trajopt_steps`` actions through the differentiable simulator (:func:`pasta.sim.trajopt.optimise_moves`, as the
+paper's demonstrations were made), and the best actions are then executed and recorded like an expert's.
 
 Layout of a dataset directory (fixed; the trainers read it)::
 
@@ -14,7 +19,7 @@ Layout of a dataset directory (fixed; the trainers read it)::
         tool_pose    (T+1, 7) float32     tool position + quaternion (w, x, y, z)
         action       (T, A) float32       actions in [-1, 1]
         skill        0-d str
-        params       0-d str, JSON of the expert parameters
+        params       0-d str, JSON of the expert parameters (GBTO: its losses and best iteration)
         final_dough  (P, 3) float32       the dough after the idle steps that follow the skill
         dough_index  (P,) int64           simulator particle indices of the observed points
 
@@ -79,6 +84,12 @@ class DemoConfig:
             (``num=350 scene=wide``: demos 200-349 in that variant).
         threads: the simulator's CPU threads in each worker (Taichi's ``cpu_max_num_threads``; the
             simulator is what computes here); 0: the simulator's default (:attr:`pasta.sim.SimConfig.cpu_threads`).
+        expert: ``scripted`` (the skill's expert) or ``trajopt`` (GBTO toward the skill's ``demo_target``);
+            empty: the scripted expert where the skill has one, else GBTO.
+        trajopt_iterations: GBTO's Adam iterations per demonstration (each a rollout and its backward pass, ~0.2 s
+            per env step at 5,000 particles on 2 cores). Its other settings are Traj-Opt's defaults
+            (:class:`pasta.config.run.TrajOptConfig`).
+        trajopt_steps: the env steps of a GBTO demonstration (paper: 50).
     """
 
     skill: str = ""
@@ -92,6 +103,9 @@ class DemoConfig:
     obs_points: int = 1000
     scene: str = "default"
     threads: int = 0
+    expert: str = ""
+    trajopt_iterations: int = 20
+    trajopt_steps: int = 50
 
 
 def demo_path(out: str | Path, skill: str, index: int) -> Path:
@@ -113,6 +127,9 @@ def validate(cfg: DemoConfig) -> Path:
         check_int(getattr(cfg, name), name, low=0, high=MAX_IDLE)
     check_variant(cls, cfg.scene)
     check_threads(cfg.threads, "threads")
+    expert_kind(cfg, cls)
+    check_int(cfg.trajopt_iterations, "trajopt_iterations", low=1, high=100_000)
+    check_int(cfg.trajopt_steps, "trajopt_steps", low=1, high=MAX_IDLE)
     sim_config(cfg)  # the simulator's own checks (n_particles, obs_points), before any simulator starts
     check_output_dir(cfg.out, "out")
     folder = Path(cfg.out).expanduser() / cfg.skill
@@ -121,6 +138,27 @@ def validate(cfg: DemoConfig) -> Path:
     if folder.is_dir() and not os.access(folder, os.W_OK | os.X_OK):
         raise ConfigError(f"out={cfg.out}: cannot write demonstrations to {folder} (not writable)")
     return folder
+
+
+#: how demonstrations are made (``expert=``): the skill's scripted expert, or GBTO toward its ``demo_target``
+EXPERTS = ("scripted", "trajopt")
+
+
+def expert_kind(cfg: DemoConfig, cls: type[Skill]) -> str:
+    """``cfg.expert`` resolved for skill class ``cls`` (empty: ``scripted`` where the skill has an expert, else
+    ``trajopt``). Raises ConfigError for an unknown kind or one the skill's hooks cannot make."""
+    from pasta.config.validate import check_choice
+
+    kind = str(cfg.expert) or ("scripted" if cls.has_expert() else "trajopt")
+    check_choice(kind, "expert", EXPERTS)
+    if kind == "scripted" and not cls.has_expert():
+        raise ConfigError(f"expert=scripted: skill '{cfg.skill}' has no scripted expert (its plugin does not define "
+                          f"{', '.join(cls.missing_demo_hooks())}); expert=trajopt makes its demonstrations from "
+                          "demo_target")
+    if kind == "trajopt" and not cls.has_gbto():
+        raise ConfigError(f"expert=trajopt: skill '{cfg.skill}' defines no {', '.join(cls.missing_gbto_hooks())}, "
+                          "the target trajectory optimisation needs")
+    return kind
 
 
 def sim_config(cfg: DemoConfig) -> Any:
@@ -197,6 +235,7 @@ class DemoWriter:
 
         self.cfg = cfg
         self.skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
+        self.expert = expert_kind(cfg, type(self.skill))
         self.variant_record = variant_record(type(self.skill), cfg.scene)
         self.sim = Simulator(sim_config(cfg), tools=get_plugins().simulated_tools())
 
@@ -213,10 +252,14 @@ class DemoWriter:
         for _ in range(cfg.settle_steps):
             sim.step()
         obs = sim.observe()
-        params = {k: float(v) for k, v in skill.sample_expert_params(obs.dough, rng).items()}
-        approach = skill.expert_approach_pose(obs.dough, params, scene=obs.dough)
-        run = run_skill(sim, skill, skill.expert(params), np.arange(len(obs.dough)), None, approach=approach,
-                        idle_steps=cfg.idle_steps, park=False, record=True)
+        if self.expert == "trajopt":
+            params, approach, controller, steps = self._optimise(obs.dough, rng)
+        else:
+            params = {k: float(v) for k, v in skill.sample_expert_params(obs.dough, rng).items()}
+            approach = skill.expert_approach_pose(obs.dough, params, scene=obs.dough)
+            controller, steps = skill.expert(params), None
+        run = run_skill(sim, skill, controller, np.arange(len(obs.dough)), None, approach=approach,
+                        idle_steps=cfg.idle_steps, park=False, record=True, max_steps=steps)
         traj = run.trajectory
         assert traj is not None  # record=True
         arrays = traj.arrays(action_dim=len(traj.action[0]) if traj.action else 1)
@@ -228,6 +271,28 @@ class DemoWriter:
         check_changed(skill, obs.dough, arrays["final_dough"], index)
         return arrays
 
+    def _optimise(self, dough: np.ndarray, rng: np.random.Generator) -> tuple[dict, Any, Any, int]:
+        """GBTO from the settled scene: the skill's target for ``dough``, its approach pose, Adam on the actions;
+        returns the record's params, the approach pose, a controller replaying the best actions and their count
+        (run_skill then records exactly the optimised rollout)."""
+        from pasta.config.run import TrajOptConfig
+        from pasta.sim.trajopt import ToolMove, optimise_moves, tool_poses
+        from pasta.tasks.step import approach_pose
+
+        cfg, sim, skill = self.cfg, self.sim, self.skill
+        target = np.asarray(skill.demo_target(dough, rng, cfg.scene), np.float32)
+        approach = approach_pose(skill, dough, target, scene=dough)
+        start = sim.get_state()
+        sim.set_tool_pose(skill.tool, approach.position, yaw=approach.yaw)  # as run_skill places it
+        move = ToolMove(skill.tool, tool_poses(sim))
+        sim.set_state(start)
+        base = TrajOptConfig()
+        opt = optimise_moves(sim, [move], target, iterations=cfg.trajopt_iterations, lr=base.lr,
+                             steps=cfg.trajopt_steps, points=base.points, blur=base.blur, contact=base.contact,
+                             seed=int(rng.integers(2**31)), stage="gbto")
+        params = {"expert": "trajopt", "losses": [round(v, 6) for v in opt.losses], "best_iteration": opt.best_iteration}
+        return params, approach, Replay(opt.actions[0]), len(opt.actions[0])
+
     def write(self, index: int) -> tuple[int, float]:
         from pasta.tasks.npz import write_npz
 
@@ -235,6 +300,22 @@ class DemoWriter:
         arrays = self.generate(index)
         write_npz(demo_path(self.cfg.out, self.cfg.skill, index), arrays)
         return int(arrays["action"].shape[0]), time.perf_counter() - t0
+
+
+class Replay:
+    """A controller that plays given actions ``(T, A)`` and stops with the last (a GBTO demonstration)."""
+
+    def __init__(self, actions: np.ndarray) -> None:
+        self.actions = np.asarray(actions, np.float32)
+        self.k = 0
+
+    def reset(self, obs: Any) -> None:
+        self.k = 0
+
+    def act(self, obs: Any) -> tuple[np.ndarray, bool]:
+        a = self.actions[min(self.k, len(self.actions) - 1)]
+        self.k += 1
+        return a, self.k >= len(self.actions)
 
 
 def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int, points: int = 500) -> float | None:
@@ -312,7 +393,10 @@ def demo_deadline(cfg: DemoConfig) -> float:
     from pasta.plugins import get_plugins
 
     skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
-    limit = int(getattr(skill, "max_steps", 50))  # what run_skill stops the expert at
+    if expert_kind(cfg, type(skill)) == "trajopt":  # each iteration a rollout and its backward: ~8 forward steps
+        limit = cfg.trajopt_steps * (1 + 8 * cfg.trajopt_iterations)
+    else:
+        limit = int(getattr(skill, "max_steps", 50))  # what run_skill stops the expert at
     return sized_deadline(cfg.settle_steps + limit + cfg.idle_steps, cfg.n_particles)
 
 

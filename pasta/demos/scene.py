@@ -2,7 +2,9 @@
 
 A skill makes demonstrations when its class overrides the hooks of :attr:`pasta.core.Skill.DEMO_HOOKS`
 (:meth:`~pasta.core.Skill.has_expert`): ``demo_scene`` gives the boxes of dough a demonstration starts
-from, ``sample_expert_params`` / ``expert_approach_pose`` / ``expert`` run it. Scene variants
+from, ``sample_expert_params`` / ``expert_approach_pose`` / ``expert`` run it; or, without a scripted expert,
+those of :attr:`pasta.core.Skill.GBTO_HOOKS` (:meth:`~pasta.core.Skill.has_gbto`): ``demo_target`` says what
+the step should leave and trajectory optimisation finds the actions. Scene variants
 (:attr:`~pasta.core.Skill.demo_variants`, ``pasta demos scene=NAME``) change the scene and the expert's
 config. Nothing here names a skill: everything comes from what is registered.
 
@@ -43,7 +45,7 @@ def demo_skills(plugins: Any = None) -> list[str]:
             cls = plugins.skills.load(name)
         except PastaError:
             continue
-        if cls.has_expert():
+        if cls.has_expert() or cls.has_gbto():
             names.append(name)
     return names
 
@@ -64,10 +66,10 @@ def check_demo_skill(name: str, plugins: Any = None) -> type:
     if name not in plugins.skills:
         raise ConfigError(f"unknown skill '{name}' for demonstrations{did_you_mean(name, able)}; {known}")
     cls = plugins.skills.load(name)
-    missing = cls.missing_demo_hooks()
-    if missing:
-        raise ConfigError(f"skill '{name}' cannot make demonstrations: its plugin does not define "
-                          f"{', '.join(missing)} (pasta.core.Skill hooks); {known}")
+    if not (cls.has_expert() or cls.has_gbto()):
+        raise ConfigError(f"skill '{name}' cannot make demonstrations: its plugin defines neither a scripted expert "
+                          f"(missing {', '.join(cls.missing_demo_hooks())}) nor a target for trajectory optimisation "
+                          f"(missing {', '.join(cls.missing_gbto_hooks())}) (pasta.core.Skill hooks); {known}")
     return cls
 
 

@@ -83,6 +83,22 @@ class StillSkill(NudgeSkill):
         return {"split_x": float(piece[:, 0].min()) - 1.0, "travel": 0.0}
 
 
+class SlideSkill(Skill):
+    """No scripted expert: a target (the piece slid 4-8 cm left) for trajectory optimisation to reach."""
+
+    spec = SkillSpec("slide", n_in=1, n_out=1, tool="pusher", description="slide a piece to the left")
+
+    def demo_scene(self, rng, floor_y, variant="default"):
+        return [((rng.uniform(0.5, 0.6), floor_y + HEIGHT / 2, rng.uniform(0.4, 0.6)), (0.06, HEIGHT, 0.06))]
+
+    def demo_target(self, dough, rng, variant="default"):
+        return dough - np.array([rng.uniform(0.04, 0.08), 0.0, 0.0], np.float32)
+
+    def approach_pose(self, piece, goal, scene=None):
+        y = float(np.percentile(piece[:, 1], 1)) - 0.005 + PUSHER_HALF_Y
+        return ToolPose((float(piece[:, 0].max()) + PUSHER_HALF_X + 0.008, y, float(piece[:, 2].mean())), 0.0)
+
+
 class LazySkill(Skill):
     spec = SkillSpec("lazy", n_in=1, n_out=1, tool="pusher", description="no expert, no demonstrations")
 
@@ -93,6 +109,7 @@ def pasta_register_skills(register):
     register(spec=NudgeSkill.spec, factory="merge_plugin:NudgeSkill")
     register(spec=StillSkill.spec, factory="merge_plugin:StillSkill")
     register(spec=LazySkill.spec, factory="merge_plugin:LazySkill")
+    register(spec=SlideSkill.spec, factory="merge_plugin:SlideSkill")
 '''
 
 TINY_VAE = {"epochs": "1", "width": "16", "fold_hidden": "16", "input_points": "64", "target_points": "64",
@@ -124,8 +141,10 @@ def test_plugin_skills_with_an_expert_are_the_demo_skills(merge_plugin, tmp_path
     # every registered skill but lazy (it has no expert), whichever other plugins are installed
     expected = [name for name in merge_plugin.skills.names() if name != "lazy"]
     assert demo_skills() == expected and {"cut", "merge", "nudge", "push", "roll"} <= set(expected)
-    with pytest.raises(ConfigError, match="skill 'lazy' cannot make demonstrations: its plugin does not define "
-                                          "demo_scene, sample_expert_params, expert_approach_pose, expert"):
+    with pytest.raises(ConfigError, match=r"skill 'lazy' cannot make demonstrations: its plugin defines neither a "
+                                          r"scripted expert \(missing demo_scene, sample_expert_params, "
+                                          r"expert_approach_pose, expert\) nor a target for trajectory optimisation "
+                                          r"\(missing demo_scene, demo_target\)"):
         validate(DemoConfig(skill="lazy", out=str(tmp_path)))
     assert main(["demos", "skill=lazy", f"out={tmp_path}"]) == 2
     assert f"skills with demonstrations: {', '.join(expected)}" in capsys.readouterr().err
@@ -152,8 +171,7 @@ def test_two_to_one_and_one_to_one_plugin_skills_demos_and_training(merge_plugin
     results = run_pipeline([f"data={data}", f"out={out}", "stages=demos,vae,feasibility,policy", "skills=merge,nudge",
                             "num_demos=2", "workers=0", "progress=false", "demos.n_particles=2000",
                             "demos.obs_points=400", *stage_args], echo=lambda _: None)
-    assert {r.name: r.status for r in results} == {n: "ran" for n in (
-        "demos/merge", "demos/nudge", "vae", "feasibility/merge", "feasibility/nudge", "policy/merge", "policy/nudge")}
+    assert {r.name: r.status for r in results} == dict.fromkeys(("demos/merge", "demos/nudge", "vae", "feasibility/merge", "feasibility/nudge", "policy/merge", "policy/nudge"), "ran")
 
     manifest = json.loads((data / "manifest.json").read_text())
     assert manifest["counts"] == {"merge": 2, "nudge": 2} and manifest["skills"]["merge"]["tool"] == "pusher"
@@ -187,3 +205,31 @@ def test_demonstrations_that_leave_the_piece_at_its_start_are_refused_with_the_t
            "dough by a Chamfer distance of" in err
     assert "below 0.0005 (perception.unchanged_threshold)" in err and "Traceback" in err
     assert not list((tmp_path / "still").glob("demo_*.npz"))
+
+
+def test_expert_choice_is_checked(merge_plugin, tmp_path):
+    from pasta.demos import DemoConfig, validate
+
+    validate(DemoConfig(skill="slide", out=str(tmp_path)))  # no scripted expert: trajectory optimisation
+    with pytest.raises(ConfigError, match="expert=scripted: skill 'slide' has no scripted expert"):
+        validate(DemoConfig(skill="slide", out=str(tmp_path), expert="scripted"))
+    with pytest.raises(ConfigError, match="expert=trajopt: skill 'nudge' defines no demo_target"):
+        validate(DemoConfig(skill="nudge", out=str(tmp_path), expert="trajopt"))
+    with pytest.raises(ConfigError, match="expert"):
+        validate(DemoConfig(skill="nudge", out=str(tmp_path), expert="gbto"))
+
+
+@pytest.mark.sim
+def test_a_skill_without_an_expert_gets_demonstrations_by_trajectory_optimisation(merge_plugin, tmp_path):
+    """`pasta demos` for a skill with a demo target and no scripted expert: GBTO finds the actions, and the demo
+    is recorded like an expert's (the file format every trainer reads), the optimisation in its params."""
+    from pasta.demos.data import load_demos
+
+    assert main(["demos", "skill=slide", "num=1", f"out={tmp_path}", "workers=0", "n_particles=1500",
+                 "obs_points=300", "trajopt_iterations=6", "trajopt_steps=10"]) == 0
+    (demo,) = load_demos(tmp_path, ["slide"])
+    assert demo.params["expert"] == "trajopt" and len(demo.params["losses"]) == 6
+    assert demo.action.shape == (10, 4) and demo.dough.shape == (11, 300, 3)
+    best = demo.params["best_iteration"]
+    assert best > 0 and demo.params["losses"][best] < demo.params["losses"][0]  # the optimiser lowered the loss
+    assert demo.after[:, 0].mean() < demo.dough[0][:, 0].mean() - 0.005  # and slid the piece left
