@@ -59,7 +59,13 @@ ABLATIONS = (
 )
 
 #: methods that plan nothing and load no pasta weights: their rows have no skill set or weights to check
-NOT_PLANNED = ("oracle", "flat", "sac-point")
+NOT_PLANNED = ("oracle", "flat", "sac-point", "trajopt")
+
+#: the Traj-Opt baseline (``pasta eval task=T method=trajopt num=5``): per task, the paper's Traj-Opt row (Table 1)
+TRAJOPT = (("lift_spread", (0.818, 0.40)), ("gather_move", (0.403, 0.00)), ("cut_rearrange", (0.511, 0.20)),
+           ("crs", (0.312, 0.00)), ("crs_twice", (0.227, 0.00)))
+#: its test configs (seeds 1000-1004): a gradient costs ~5 minutes an episode on 2 cores (docs/simulator.md)
+TRAJOPT_CONFIGS = 5
 
 
 #: the closed loop under disturbance (docs/policies.md): these tasks, each disturbance kind ("": none)
@@ -155,11 +161,15 @@ def _paper(paper: tuple[float, float] | None) -> str:
     return "" if paper is None else f"{paper[0]:.3f} / {100 * paper[1]:.0f}%"
 
 
-def _check(summary: dict | None, name: str) -> None:
-    """A row must be the fixed test set, 20 configs."""
-    if summary is not None and (summary.get("split") != "test" or summary.get("episodes") != 20):
-        raise SystemExit(f"{name}.json: not a 20-config test-set summary (split {summary.get('split')}, "
+def _check(summary: dict | None, name: str, configs: int = 20) -> None:
+    """A row must be the fixed test set, ``configs`` configs."""
+    if summary is not None and (summary.get("split") != "test" or summary.get("episodes") != configs):
+        raise SystemExit(f"{name}.json: not a {configs}-config test-set summary (split {summary.get('split')}, "
                          f"{summary.get('episodes')} episodes)")
+
+
+def trajopt_names() -> list[str]:
+    return [f"{task}_trajopt" for task, _ in TRAJOPT]
 
 
 def table(results: Path = RESULTS) -> str:
@@ -180,6 +190,14 @@ def table(results: Path = RESULTS) -> str:
         summary = _summary(results, name)
         _check(summary, name)
         lines.append(f"| {task} | {what} | {_cell(summary)} | {_paper(paper)} | `{settings}` |")
+    lines += ["", f"| task | Traj-Opt ({TRAJOPT_CONFIGS} configs) | paper (Traj-Opt) | Adam iterations | minutes per episode |",
+              "|---|---:|---:|---:|---:|"]
+    for (task, paper), name in zip(TRAJOPT, trajopt_names()):
+        summary = _summary(results, name)
+        _check(summary, name, TRAJOPT_CONFIGS)
+        its = str(summary["config"]["trajopt"]["iterations"]) if summary else ""
+        minutes = f"{(summary['plan_s_mean'] + summary['execute_s_mean']) / 60:.1f}" if summary else ""
+        lines.append(f"| {task} | {_cell(summary)} | {_paper(paper)} | {its} | {minutes} |")
     lines += ["", "| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
               "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
     for task in LOOP_TASKS:
@@ -197,7 +215,9 @@ def table(results: Path = RESULTS) -> str:
               "a GPU. Each row is `pasta eval task=T num=20` with the settings named (learned policies: "
               "`execute.controller=learned`; under a disturbance: `disturb=KIND`, closed loop: `execute.loop=closed`); "
               "its per-episode rows are in `docs/results/` (SAC-Point: the script trains, then scores its policy on the "
-              "same 20 configs; docs/gymnasium.md). Plan s: mean planning seconds per episode on one CPU "
+              "same 20 configs; docs/gymnasium.md). Traj-Opt: `pasta eval task=T method=trajopt num=5`, gradient "
+              "descent on the ground-truth tool chain's actions through the simulator, on the first 5 test configs "
+              "(docs/simulator.md, \"Traj-Opt\"). Plan s: mean planning seconds per episode on one CPU "
               "thread, as each row's run measured it, on a 2-core machine that up to four runs shared "
               "(`benchmarks/bench_planner.py` times the planner alone)."]
     return _footnoted(lines)

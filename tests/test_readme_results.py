@@ -44,6 +44,21 @@ def test_every_cited_row_has_its_episodes():
         assert abs(mean - summary["improvement_mean"]) < 1e-9, name
 
 
+def test_every_trajopt_row_has_its_episodes():
+    rt = _script()
+    for name in rt.trajopt_names():
+        if not (rt.RESULTS / f"{name}.json").exists():  # reads "not run"
+            continue
+        summary = json.loads((rt.RESULTS / f"{name}.json").read_text())
+        rows = [json.loads(line) for line in (rt.RESULTS / f"{name}.jsonl").read_text().splitlines() if line.strip()]
+        assert summary["split"] == "test" and summary["method"] == "trajopt", name
+        assert summary["episodes"] == rt.TRAJOPT_CONFIGS == len(rows), name
+        assert sorted(r["seed"] for r in rows) == list(range(1000, 1000 + rt.TRAJOPT_CONFIGS)), name
+        assert all(len(r["trajopt"]["losses"]) == summary["config"]["trajopt"]["iterations"] for r in rows), name
+        mean = sum(r["improvement"] for r in rows) / len(rows)
+        assert abs(mean - summary["improvement_mean"]) < 1e-9, name
+
+
 def test_rows_planned_with_a_skill_their_scene_leaves_out_are_marked():
     rt = _script()
     config = {"sim": {"n_grid": 64}}

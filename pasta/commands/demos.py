@@ -6,11 +6,13 @@ from __future__ import annotations
 import argparse
 import sys
 
-HELP = ("generate demonstrations of a skill with its scripted expert on the scenes its plugin draws "
+HELP = ("generate demonstrations of a skill with its scripted expert on the scenes its plugin draws, or by "
+        "trajectory optimisation toward the targets it draws "
         "(key=value: skill, num, out, workers, seed, settle_steps, idle_steps, n_particles, obs_points, scene, "
-        "threads, backend=local|ray, ray.address, ray.num_cpus, deadline_s); threads=N: the simulator's CPU threads "
+        "threads, expert=scripted|trajopt, trajopt_iterations, trajopt_steps, backend=local|ray, ray.address, "
+        "ray.num_cpus, deadline_s); threads=N: the simulator's CPU threads "
         "in each worker (0, the default: the simulator's default, 2); any registered skill whose plugin defines "
-        "demo_scene and an expert; resumable: existing demos are kept; backend=ray runs them as Ray tasks; a worker "
+        "demo_scene and an expert, or demo_scene and demo_target (expert=trajopt, its default then); resumable: existing demos are kept; backend=ray runs them as Ray tasks; a worker "
         "still on one demo after deadline_s seconds (0, the default: derived from the skill's max_steps and "
         "n_particles, about 11-13 min at the defaults) is given up and the demo retried (docs/scaling.md)")
 
