@@ -51,6 +51,7 @@ from pasta.core.errors import ConfigError
 from pasta.core.files import OutputLock, write_json
 from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
 from pasta.distributed import MAX_WORKERS, BackendConfig, BackendError
+from pasta.tasks.step import GBTO_ITERATIONS, GBTO_STEPS
 from pasta.demos.scene import (DEFAULT, check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles,
                                variant_config)
 
@@ -104,8 +105,8 @@ class DemoConfig:
     scene: str = "default"
     threads: int = 0
     expert: str = ""
-    trajopt_iterations: int = 20
-    trajopt_steps: int = 50
+    trajopt_iterations: int = GBTO_ITERATIONS
+    trajopt_steps: int = GBTO_STEPS
 
 
 def demo_path(out: str | Path, skill: str, index: int) -> Path:
@@ -241,7 +242,7 @@ class DemoWriter:
 
     def generate(self, index: int) -> dict[str, np.ndarray]:
         """The arrays of demonstration ``index`` (see the module docstring)."""
-        from pasta.tasks.step import run_skill
+        from pasta.tasks.step import gbto_expert, run_skill
 
         cfg, sim, skill = self.cfg, self.sim, self.skill
         rng = np.random.default_rng([cfg.seed, zlib.crc32(cfg.skill.encode()), index])
@@ -253,7 +254,10 @@ class DemoWriter:
             sim.step()
         obs = sim.observe()
         if self.expert == "trajopt":
-            params, approach, controller, steps = self._optimise(obs.dough, rng)
+            params, approach, controller = gbto_expert(sim, skill, obs.dough, np.arange(len(obs.dough)), rng,
+                                                       iterations=cfg.trajopt_iterations, steps=cfg.trajopt_steps,
+                                                       variant=cfg.scene)
+            steps = cfg.trajopt_steps
         else:
             params = {k: float(v) for k, v in skill.sample_expert_params(obs.dough, rng).items()}
             approach = skill.expert_approach_pose(obs.dough, params, scene=obs.dough)
@@ -271,28 +275,6 @@ class DemoWriter:
         check_changed(skill, obs.dough, arrays["final_dough"], index)
         return arrays
 
-    def _optimise(self, dough: np.ndarray, rng: np.random.Generator) -> tuple[dict, Any, Any, int]:
-        """GBTO from the settled scene: the skill's target for ``dough``, its approach pose, Adam on the actions;
-        returns the record's params, the approach pose, a controller replaying the best actions and their count
-        (run_skill then records exactly the optimised rollout)."""
-        from pasta.config.run import TrajOptConfig
-        from pasta.sim.trajopt import ToolMove, optimise_moves, tool_poses
-        from pasta.tasks.step import approach_pose
-
-        cfg, sim, skill = self.cfg, self.sim, self.skill
-        target = np.asarray(skill.demo_target(dough, rng, cfg.scene), np.float32)
-        approach = approach_pose(skill, dough, target, scene=dough)
-        start = sim.get_state()
-        sim.set_tool_pose(skill.tool, approach.position, yaw=approach.yaw)  # as run_skill places it
-        move = ToolMove(skill.tool, tool_poses(sim))
-        sim.set_state(start)
-        base = TrajOptConfig()
-        opt = optimise_moves(sim, [move], target, iterations=cfg.trajopt_iterations, lr=base.lr,
-                             steps=cfg.trajopt_steps, points=base.points, blur=base.blur, contact=base.contact,
-                             seed=int(rng.integers(2**31)), stage="gbto")
-        params = {"expert": "trajopt", "losses": [round(v, 6) for v in opt.losses], "best_iteration": opt.best_iteration}
-        return params, approach, Replay(opt.actions[0]), len(opt.actions[0])
-
     def write(self, index: int) -> tuple[int, float]:
         from pasta.tasks.npz import write_npz
 
@@ -300,22 +282,6 @@ class DemoWriter:
         arrays = self.generate(index)
         write_npz(demo_path(self.cfg.out, self.cfg.skill, index), arrays)
         return int(arrays["action"].shape[0]), time.perf_counter() - t0
-
-
-class Replay:
-    """A controller that plays given actions ``(T, A)`` and stops with the last (a GBTO demonstration)."""
-
-    def __init__(self, actions: np.ndarray) -> None:
-        self.actions = np.asarray(actions, np.float32)
-        self.k = 0
-
-    def reset(self, obs: Any) -> None:
-        self.k = 0
-
-    def act(self, obs: Any) -> tuple[np.ndarray, bool]:
-        a = self.actions[min(self.k, len(self.actions) - 1)]
-        self.k += 1
-        return a, self.k >= len(self.actions)
 
 
 def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int, points: int = 500) -> float | None:

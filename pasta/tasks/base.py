@@ -97,7 +97,7 @@ class GroundTruthStep:
     """
 
     skill: str
-    params: dict[str, float]
+    params: dict[str, Any]
     inputs: np.ndarray
     outputs: list[np.ndarray]
     state: np.ndarray
@@ -389,22 +389,31 @@ class Generation:
         return self.sim.observe().dough
 
     def run(self, skill_name: str, piece: int, params: dict[str, float] | None = None) -> list[int]:
-        """Run the expert of ``skill_name`` on piece number ``piece`` (random parameters when None).
+        """Run the expert of ``skill_name`` on piece number ``piece`` (random parameters when None); a skill
+        without a scripted expert but with ``demo_target`` gets its step by trajectory optimisation
+        (:func:`pasta.tasks.step.gbto_expert`, its record as the step's params).
 
         The produced pieces replace the consumed one in :attr:`pieces` (cut: left part at ``piece``,
         right part inserted after it). Returns the indices of the produced pieces in :attr:`pieces`.
         """
-        from pasta.tasks.step import run_skill
+        from pasta.tasks.step import GBTO_STEPS, gbto_expert, run_skill
 
         skill = self.task.skill(skill_name)
         idx = self.pieces[piece]
         dough = self.observe()
-        if params is None:
-            params = skill.sample_expert_params(dough[idx], self.rng)
-        params = {k: float(v) for k, v in params.items()}
-        approach = skill.expert_approach_pose(dough[idx], params, scene=dough)
-        run = run_skill(self.sim, skill, skill.expert(params), idx, None, approach=approach,
-                        idle_steps=self.task.config.idle_steps)
+        limit = None
+        controller: Any
+        if not type(skill).has_expert() and type(skill).has_gbto():
+            record, approach, controller = gbto_expert(self.sim, skill, dough, idx, self.rng)
+            params, limit = record, GBTO_STEPS
+        else:
+            if params is None:
+                params = skill.sample_expert_params(dough[idx], self.rng)
+            params = {k: float(v) for k, v in params.items()}
+            approach = skill.expert_approach_pose(dough[idx], params, scene=dough)
+            controller = skill.expert(params)
+        run = run_skill(self.sim, skill, controller, idx, None, approach=approach,
+                        idle_steps=self.task.config.idle_steps, max_steps=limit)
         after = self.observe()
         outputs = split_pieces(after[idx], idx, skill.n_out)
         state = self.sim.particles().astype(np.float32)

@@ -19,7 +19,8 @@ import numpy as np
 from pasta.core import Controller, InputError, Skill, SkillObservation, StepMonitor, Stop, ToolPose, stop_reason
 from pasta.core.metrics import chamfer
 
-__all__ = ["GoalMonitor", "SkillRun", "Trajectory", "approach_pose", "piece_indices", "run_skill", "skill_observation"]
+__all__ = ["GBTO_ITERATIONS", "GBTO_STEPS", "GoalMonitor", "Replay", "SkillRun", "Trajectory", "approach_pose", "gbto_expert",
+           "piece_indices", "run_skill", "skill_observation"]
 
 
 @dataclass
@@ -228,6 +229,57 @@ def approach_pose(skill: Skill, piece: np.ndarray, goal: np.ndarray | None, *, s
         return skill.approach_pose(piece, goal, scene=scene)  # type: ignore[call-arg,arg-type]
     except TypeError:  # a skill whose approach_pose has the two-argument contract signature
         return skill.approach_pose(piece, goal)  # type: ignore[arg-type]
+
+
+#: GBTO's defaults for a skill without a scripted expert (demonstrations and task goals): Adam iterations and env
+#: steps (the paper's demonstrations: 50 steps)
+GBTO_ITERATIONS = 20
+GBTO_STEPS = 50
+
+
+class Replay(Controller):
+    """Plays given actions ``(T, A)`` and stops with the last (what GBTO found)."""
+
+    def __init__(self, actions: np.ndarray) -> None:
+        self.actions = np.asarray(actions, np.float64)
+        self.k = 0
+
+    def reset(self, obs: SkillObservation) -> None:
+        self.k = 0
+
+    def act(self, obs: SkillObservation) -> tuple[np.ndarray, bool]:
+        a = self.actions[min(self.k, len(self.actions) - 1)]
+        self.k += 1
+        return a, self.k >= len(self.actions)
+
+
+def gbto_expert(sim: Any, skill: Skill, dough: np.ndarray, piece: np.ndarray, rng: np.random.Generator, *,
+                iterations: int = GBTO_ITERATIONS, steps: int = GBTO_STEPS, variant: str = "default"
+                ) -> tuple[dict[str, Any], ToolPose, Replay]:
+    """Gradient-based trajectory optimisation in place of a scripted expert, for a skill with ``demo_target``:
+    the target of the piece ``dough[piece]`` (the rest of the observed ``dough (P, 3)`` stays where it is), the
+    skill's approach pose for it, Adam on ``steps`` actions through the differentiable simulator
+    (:func:`pasta.sim.trajopt.optimise_moves`, Traj-Opt's settings). Returns the record (``expert: trajopt``,
+    the losses, the best iteration), the approach pose and a controller replaying the best actions: run with
+    :func:`run_skill` (``approach=``, ``max_steps=steps``) it makes the optimised rollout, the actions rounded
+    to float32 as every controller's. ``sim`` is left as it was."""
+    from pasta.config.run import TrajOptConfig
+    from pasta.sim.trajopt import ToolMove, optimise_moves, tool_poses
+
+    piece = np.asarray(piece, np.int64)
+    others = np.setdiff1d(np.arange(len(dough)), piece)
+    moved = np.asarray(skill.demo_target(dough[piece], rng, variant), np.float32)
+    approach = approach_pose(skill, dough[piece], moved, scene=dough)
+    start = sim.get_state()
+    sim.set_tool_pose(skill.tool, approach.position, yaw=approach.yaw)  # as run_skill places it
+    move = ToolMove(skill.tool, tool_poses(sim))
+    sim.set_state(start)
+    base = TrajOptConfig()
+    opt = optimise_moves(sim, [move], np.concatenate([dough[others], moved]), iterations=iterations, lr=base.lr,
+                         steps=steps, points=base.points, blur=base.blur, contact=base.contact,
+                         seed=int(rng.integers(2**31)), stage="gbto")
+    record = {"expert": "trajopt", "losses": [round(v, 6) for v in opt.losses], "best_iteration": opt.best_iteration}
+    return record, approach, Replay(opt.actions[0])
 
 
 def run_skill(

@@ -233,3 +233,17 @@ def test_a_skill_without_an_expert_gets_demonstrations_by_trajectory_optimisatio
     best = demo.params["best_iteration"]
     assert best > 0 and demo.params["losses"][best] < demo.params["losses"][0]  # the optimiser lowered the loss
     assert demo.after[:, 0].mean() < demo.dough[0][:, 0].mean() - 0.005  # and slid the piece left
+
+
+@pytest.mark.sim
+@pytest.mark.slow
+def test_a_skill_without_an_expert_gets_task_goals_by_trajectory_optimisation(merge_plugin):
+    """`task=skill task.skill=slide`: the goal is made by GBTO (20 iterations of 50 steps at 5,000 particles:
+    minutes on 2 cores, hence the slow tier), recorded as the step's params, and the piece ends left of where it
+    started, as its target asks."""
+    task = merge_plugin.tasks.load("skill")(merge_plugin.tasks.default_config("skill").__class__(skill="slide"), None)
+    inst = task.generate(2000)
+    (step,) = inst.steps
+    assert step.skill == "slide" and step.params["expert"] == "trajopt" and step.steps == 50
+    assert step.params["losses"][step.params["best_iteration"]] < step.params["losses"][0]
+    assert inst.goal[:, 0].mean() < inst.init_points[:, 0].mean() - 0.01
