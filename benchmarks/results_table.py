@@ -190,14 +190,15 @@ def table(results: Path = RESULTS) -> str:
         summary = _summary(results, name)
         _check(summary, name)
         lines.append(f"| {task} | {what} | {_cell(summary)} | {_paper(paper)} | `{settings}` |")
-    lines += ["", f"| task | Traj-Opt ({TRAJOPT_CONFIGS} configs) | paper (Traj-Opt) | Adam iterations | minutes per episode |",
-              "|---|---:|---:|---:|---:|"]
     for (task, paper), name in zip(TRAJOPT, trajopt_names()):
         summary = _summary(results, name)
         _check(summary, name, TRAJOPT_CONFIGS)
-        its = str(summary["config"]["trajopt"]["iterations"]) if summary else ""
-        minutes = f"{(summary['plan_s_mean'] + summary['execute_s_mean']) / 60:.1f}" if summary else ""
-        lines.append(f"| {task} | {_cell(summary)} | {_paper(paper)} | {its} | {minutes} |")
+        cost = ""
+        if summary:
+            minutes = (summary["plan_s_mean"] + summary["execute_s_mean"]) / 60
+            cost = f", {summary['config']['trajopt']['iterations']} Adam iterations, {minutes:.1f} min an episode"
+        lines.append(f"| {task} | Traj-Opt (gradient descent through the simulator, {TRAJOPT_CONFIGS} configs{cost}) | "
+                     f"{_cell(summary)} | {_paper(paper)} | `method=trajopt num={TRAJOPT_CONFIGS}` |")
     lines += ["", "| task | disturbance | open loop, heuristic | closed loop, heuristic | open loop, learned | "
               "closed loop, learned |", "|---|---|---:|---:|---:|---:|"]
     for task in LOOP_TASKS:

@@ -98,6 +98,9 @@ class SlideSkill(Skill):
         y = float(np.percentile(piece[:, 1], 1)) - 0.005 + PUSHER_HALF_Y
         return ToolPose((float(piece[:, 0].max()) + PUSHER_HALF_X + 0.008, y, float(piece[:, 2].mean())), 0.0)
 
+    def park_pose(self):
+        return ToolPose((0.95, 0.3, 0.95), 0.0)
+
 
 class LazySkill(Skill):
     spec = SkillSpec("lazy", n_in=1, n_out=1, tool="pusher", description="no expert, no demonstrations")
