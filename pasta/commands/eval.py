@@ -163,10 +163,6 @@ def eval_job(state: EvalState, seed: int, attempt: int) -> dict[str, Any]:
             "provenance": state.machine}
 
 
-#: what one env step of a Traj-Opt iteration (rollout and backward) costs in forward simulator steps
-#: (benchmarks/bench_grad.py: 5.6-8x)
-GRADIENT_STEPS = 8
-
 #: the default deadline's planning allowance per horizon step (a crs plan takes 5-130 s on a 2-core machine)
 PLAN_S = 200.0
 
@@ -174,13 +170,15 @@ PLAN_S = 200.0
 def episode_deadline(session: Any) -> float:
     """The default ``deadline_s`` of ``pasta eval``: the most simulator steps an episode of ``session`` may
     take, sized by :func:`pasta.distributed.sized_deadline`, plus :data:`PLAN_S` per horizon step (none for
-    the oracle and Traj-Opt, which do not plan; Traj-Opt's iterations count as :data:`GRADIENT_STEPS` steps per
+    the oracle and Traj-Opt, which do not plan; Traj-Opt's iterations count as :data:`pasta.sim.trajopt.GRADIENT_STEPS` steps per
     env step of its chain). The steps: generating the instance (the task's chain, on a cold task
     cache) and executing ``horizon`` steps, each up to ``1 + execute.retries`` times, every skill run at the
     longest step limit (``skill.<name>.max_steps``) of the skills planned with (the oracle: the task's
     chain) plus ``execute.overrun`` and ``execute.idle_steps``."""
     from pasta.config import section
     from pasta.distributed import STEP_PARTICLES, sized_deadline
+    from pasta.execute.session import NO_PLANNER
+    from pasta.sim.trajopt import GRADIENT_STEPS
 
     cfg, task = session.cfg, session.task
     exe = section(cfg, "execute")
@@ -192,8 +190,8 @@ def episode_deadline(session: Any) -> float:
     idle, settle = int(getattr(tcfg, "idle_steps", 10)), int(getattr(tcfg, "settle_steps", 10))
     generate = settle + len(task.skeleton) * (longest + idle)
     execute = horizon * (1 + int(exe.retries)) * (longest + int(exe.overrun) + int(exe.idle_steps))
-    plan = 0.0 if str(cfg.method) in ("oracle", "trajopt") else PLAN_S * horizon
-    if str(cfg.method) == "trajopt":  # each iteration a rollout and its backward: ~8 forward steps per env step
+    plan = 0.0 if str(cfg.method) in NO_PLANNER else PLAN_S * horizon
+    if str(cfg.method) == "trajopt":  # each iteration a rollout and its backward
         chain = len(task.skeleton) * int(cfg.trajopt.steps)
         execute = chain + idle + GRADIENT_STEPS * int(cfg.trajopt.iterations) * chain
     return sized_deadline(generate + execute, int(getattr(tcfg, "n_particles", STEP_PARTICLES)), plan)

@@ -359,8 +359,10 @@ def demo_deadline(cfg: DemoConfig) -> float:
     from pasta.plugins import get_plugins
 
     skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
-    if expert_kind(cfg, type(skill)) == "trajopt":  # each iteration a rollout and its backward: ~8 forward steps
-        limit = cfg.trajopt_steps * (1 + 8 * cfg.trajopt_iterations)
+    if expert_kind(cfg, type(skill)) == "trajopt":  # each iteration a rollout and its backward
+        from pasta.sim.trajopt import GRADIENT_STEPS
+
+        limit = cfg.trajopt_steps * (1 + GRADIENT_STEPS * cfg.trajopt_iterations)
     else:
         limit = int(getattr(skill, "max_steps", 50))  # what run_skill stops the expert at
     return sized_deadline(cfg.settle_steps + limit + cfg.idle_steps, cfg.n_particles)

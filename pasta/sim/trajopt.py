@@ -22,7 +22,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Optimised", "ToolMove", "execute_moves", "optimise_moves", "tool_poses"]
+__all__ = ["GRADIENT_STEPS", "Optimised", "ToolMove", "execute_moves", "optimise_moves", "tool_poses"]
+
+#: what one env step of an optimiser iteration (rollout and backward) costs, in forward simulator steps
+#: (benchmarks/bench_grad.py: 5.6-8x); the deadlines of `pasta eval method=trajopt` and GBTO demos use it
+GRADIENT_STEPS = 8
 
 
 @dataclass
