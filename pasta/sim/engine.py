@@ -6,10 +6,11 @@ constitutive model (von Mises return mapping on log singular values, fixed-corot
 gravity, tool contact in a soft SDF band with Coulomb friction, floor friction with a second friction inside
 the spreading area, free-slip walls) and the advection with its divergence check. Two drivers use it:
 
-- :class:`Engine`, the forward simulator: one kernel launch per substep (constitutive update with a
-  warm-started one-sweep SVD; the scatter as one serialized loop on CPU, where Taichi demotes the atomics
-  to plain adds: about 3x faster than the parallel atomic scatter and bitwise deterministic; the grid
-  update over the touched box only; the gather; clearing the touched box).
+- :class:`Engine`, the forward simulator: one kernel launch per substep and one parallel loop in it (the
+  constitutive update with a warm-started one-sweep SVD runs in the previous substep's particle loop; the
+  scatter as one serialized loop on CPU, where Taichi demotes the atomics to plain adds: about 3x faster
+  than the parallel atomic scatter and bitwise deterministic; clearing and updating the touched box of the
+  grid serially, cheaper than a thread-pool dispatch; the gather and advection in parallel).
 - :class:`pasta.sim.grad.GradEngine`, the differentiable one: per-substep particle history, Taichi
   autodiff kernels and a hand-written SVD adjoint (docs/simulator.md, "Gradients").
 
@@ -121,7 +122,7 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
     of the env step; ``statics``: the static tool fields by name (``n_tools``, ``tool_kind``, ``tool_geo``,
     ``tool_n_prims``, ``tool_bound2``, ``tool_fric``). Returns a namespace of ``ti.func`` s:
     ``node_velocity(I, mv, t_now)`` (and its three parts ``node_start``, ``node_contact``, ``node_bounds``),
-    ``warm_svd(Fp, V)``, ``return_map(sig)``, ``affine(Fp, U, V, s, Cp)``,
+    ``warm_svd(Fp, V)``, ``return_map(sig)``, ``compose(U, s, V)``, ``affine(Fp, U, V, s, Cp)``,
     ``scatter(grid, xp, vp, Ap)``, ``gather(grid, xp)``, ``advance(xp, new_v, new_C, bad)``, and the touched-box
     helpers ``box_extent(bbox)``, ``box_store(bbox, lo, hi)``, ``box_include(bbox, base)``,
     ``box_node(lo, ext, tt)``.
@@ -324,20 +325,29 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
             t = spq / den
         c = 1.0 / ti.sqrt(1.0 + t * t)
         sn = t * c
-        J = ti.Matrix.identity(ti.f32, 3)
-        J[p, p] = c
-        J[q, q] = c
-        J[p, q] = sn
-        J[q, p] = -sn
-        return J.transpose() @ S @ J, V @ J
+        # J is the identity but for J[p, p] = J[q, q] = c, J[p, q] = sn, J[q, p] = -sn; only columns and rows
+        # p and q change, so they are written out (without fast_math LLVM may not drop the products with J's
+        # zeros, which made the 3x3 products most of the constitutive update's cost)
+        JS = S
+        for j in ti.static(range(3)):  # rows p and q of J^T S
+            JS[p, j] = c * S[p, j] - sn * S[q, j]
+            JS[q, j] = sn * S[p, j] + c * S[q, j]
+        JSJ = JS
+        VJ = V
+        for i in ti.static(range(3)):  # columns p and q of (J^T S) J and of V J
+            JSJ[i, p] = c * JS[i, p] - sn * JS[i, q]
+            JSJ[i, q] = sn * JS[i, p] + c * JS[i, q]
+            VJ[i, p] = c * V[i, p] - sn * V[i, q]
+            VJ[i, q] = sn * V[i, p] + c * V[i, q]
+        return JSJ, VJ
 
     @ti.func
     def warm_svd(Fp, V):
         """SVD of Fp warm-started from the previous right singular vectors V (a rotation): one
         cyclic Jacobi sweep on V^T Fp^T Fp V, then Gram-Schmidt on Fp V. F changes by
         (I + dt C) per substep, so V is already nearly right and one sweep suffices; V is
-        recomputed by a full SVD at the start of every env step (``refresh_svd``). Returns
-        U, sig, V with U and V rotations (sig[2] < 0 for an inverted element), unsorted."""
+        recomputed by a full SVD at the start of every env step. Returns U, sig, V with U and V
+        rotations (sig[2] < 0 for an inverted element), unsorted."""
         S = V.transpose() @ (Fp.transpose() @ Fp) @ V
         S, V = jacobi_rotate(S, V, 0, 1)
         S, V = jacobi_rotate(S, V, 0, 2)
@@ -372,6 +382,12 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         return ti.exp(e), changed
 
     @ti.func
+    def compose(U, s, V):
+        """U diag(s) V^T (the diagonal as a column scaling: no products with zeros)."""
+        Us = ti.Matrix.cols([ti.Vector([U[0, i], U[1, i], U[2, i]]) * s[i] for i in ti.static(range(3))])
+        return Us @ V.transpose()
+
+    @ti.func
     def affine(Fp, U, V, s, Cp):
         """Fixed-corotated stress of the deformation Fp = U diag(s) V^T, as the APIC affine momentum matrix
         the scatter spreads (stress term plus the particle's mass times its velocity gradient Cp)."""
@@ -379,7 +395,10 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         lam = params[P_LAM]
         J = s[0] * s[1] * s[2]
         R = U @ V.transpose()
-        stress = 2.0 * mu * (Fp - R) @ Fp.transpose() + ti.Matrix.identity(ti.f32, 3) * (lam * J * (J - 1.0))
+        stress = 2.0 * mu * (Fp - R) @ Fp.transpose()
+        pressure = lam * J * (J - 1.0)
+        for i in ti.static(range(3)):  # + pressure I, without products with the identity's zeros
+            stress[i, i] += pressure
         return (-params[P_DT] * p_vol * 4.0 * inv_dx * inv_dx) * stress + p_mass * Cp
 
     @ti.func
@@ -460,7 +479,7 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         """Node number ``tt`` of the box (lo, ext)."""
         return ti.Vector([lo[0] + tt // (ext[1] * ext[2]), lo[1] + (tt // ext[2]) % ext[1], lo[2] + tt % ext[2]])
 
-    return SimpleNamespace(warm_svd=warm_svd, node_velocity=node_velocity, node_start=node_start, node_contact=node_contact,
+    return SimpleNamespace(warm_svd=warm_svd, compose=compose, node_velocity=node_velocity, node_start=node_start, node_contact=node_contact,
                            node_bounds=node_bounds, return_map=return_map, affine=affine, scatter=scatter,
                            gather=gather, advance=advance, box_extent=box_extent, box_store=box_store,
                            box_include=box_include, box_node=box_node)
@@ -523,29 +542,42 @@ class Engine:
             Vr[p] = V
             s, _changed = phys.return_map(sig)
             # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly
-            Fp = U @ ti.Matrix([[s[0], 0.0, 0.0], [0.0, s[1], 0.0], [0.0, 0.0, s[2]]]) @ V.transpose()
+            Fp = phys.compose(U, s, V)
             F[p] = Fp
             A[p] = phys.affine(Fp, U, V, s, C[p])
 
         # ---------------------------------------------------------------- kernels
         @ti.kernel
-        def refresh_svd():
-            """Recompute the warm-start rotations from F with a full SVD (once per env step)."""
+        def begin_step():
+            """Start an env step: the warm-start rotations from a full SVD of F, then the first substep's
+            constitutive update (every later substep's runs in the previous substep's particle loop)."""
             for p in range(n_p[None]):
                 _U, _sig, V = ti.svd(F[p])
                 Vr[p] = V
+                constitutive_p(p)
 
         @ti.kernel
-        def substep(t_now: ti.f32):
-            """One substep: constitutive update (parallel), scatter (one serialized loop on CPU: Taichi then
-            demotes the atomics to plain adds, ~3x faster than parallel atomics and bitwise deterministic),
-            grid operation over the touched box, gather, then clear the touched box so the grid is all-zero
-            between substeps."""
-            for p in range(n_p[None]):
-                constitutive_p(p)
+        def substep(t_now: ti.f32, last: ti.i32):
+            """One substep in three loops, one of them parallel on CPU (a parallel loop costs a thread-pool
+            dispatch, measured 40-60 us on a 2-core VM, about the work of a 1000-particle loop):
+
+            1. serial: clear the previous substep's touched box, scatter every particle (a serialized loop:
+               Taichi then demotes the atomics to plain adds, ~3x faster than parallel atomics on CPU, and
+               the sums come in one order: bitwise deterministic) and record the new touched box;
+            2. serial on CPU: the grid operation over the touched box (a few thousand nodes);
+            3. parallel, per particle: gather, advect, and (unless ``last``) the next substep's constitutive
+               update, so that no loop of its own is needed for it.
+
+            The grid keeps the last substep's values between env steps (the next substep clears them).
+            """
+            blo, ext = phys.box_extent(bbox)
             lo = ti.Vector([n, n, n])
             hi = ti.Vector([-1, -1, -1])
             if ti.static(serial):
+                ti.loop_config(serialize=True)
+                for i in range(ext[0]):
+                    for j, k in ti.ndrange(ext[1], ext[2]):
+                        grid[blo + ti.Vector([i, j, k])] = ti.Vector.zero(ti.f32, 4)
                 ti.loop_config(serialize=True)
                 for p in range(n_p[None]):
                     base = phys.scatter(grid, x[p], v[p], A[p])
@@ -553,12 +585,15 @@ class Engine:
                     hi = ti.max(hi, base + 2)
                 phys.box_store(bbox, lo, hi)
             else:
+                for tt in range(ext[0] * ext[1] * ext[2]):
+                    grid[phys.box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
                 phys.box_store(bbox, lo, hi)  # empty
                 for p in range(n_p[None]):
                     phys.box_include(bbox, phys.scatter(grid, x[p], v[p], A[p]))
-            blo, ext = phys.box_extent(bbox)
-            for tt in range(ext[0] * ext[1] * ext[2]):
-                I = phys.box_node(blo, ext, tt)
+            nlo, next_ = phys.box_extent(bbox)
+            ti.loop_config(serialize=serial)  # a few thousand nodes: cheaper than a thread-pool dispatch
+            for tt in range(next_[0] * next_[1] * next_[2]):
+                I = phys.box_node(nlo, next_, tt)
                 gv = grid[I]
                 if gv[3] > 0:
                     vel = phys.node_velocity(I, gv, t_now)
@@ -566,8 +601,8 @@ class Engine:
             for p in range(n_p[None]):
                 new_v, new_C = phys.gather(grid, x[p])
                 x[p], v[p], C[p] = phys.advance(x[p], new_v, new_C, bad)
-            for tt in range(ext[0] * ext[1] * ext[2]):
-                grid[phys.box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
+                if last == 0:
+                    constitutive_p(p)
 
         @ti.kernel
         def check_state() -> ti.i32:
@@ -594,7 +629,7 @@ class Engine:
             bad[0] = 0
             bad[1] = 0
 
-        self._refresh_svd = refresh_svd
+        self._begin_step = begin_step
         self._substep = substep
         self.check_state = check_state
         self.clear_all = clear_all
@@ -604,9 +639,9 @@ class Engine:
     def substeps(self, n_sub: int, dt: float) -> None:
         """Run ``n_sub`` substeps. The tool field holds the env-step start poses and velocities;
         substep s uses the tool poses at time (s + 1) * dt."""
-        self._refresh_svd()
+        self._begin_step()
         for s in range(n_sub):
-            self._substep((s + 1) * dt)
+            self._substep((s + 1) * dt, int(s == n_sub - 1))
 
     def set_tools(self, arrays: dict) -> None:
         """Load the static tool data of ``ToolTable.kernel_arrays()`` (no recompile)."""

@@ -111,7 +111,7 @@ class GradEngine:
                 Up = U[s, p]
                 Vp = V[s, p]
                 sn, _changed = phys.return_map(sig[s, p])
-                Fn = Up @ ti.Matrix([[sn[0], 0.0, 0.0], [0.0, sn[1], 0.0], [0.0, 0.0, sn[2]]]) @ Vp.transpose()
+                Fn = phys.compose(Up, sn, Vp)
                 F[s + 1, p] = Fn
                 A[s, p] = phys.affine(Fn, Up, Vp, sn, C[s, p])
 
