@@ -7,7 +7,8 @@ gravity, tool contact in a soft SDF band with Coulomb friction, floor friction w
 the spreading area, free-slip walls) and the advection with its divergence check. Two drivers use it:
 
 - :class:`Engine`, the forward simulator: one kernel launch per substep and one parallel loop in it (the
-  constitutive update with a warm-started one-sweep SVD runs in the previous substep's particle loop; the
+  constitutive update with a warm-started one-sweep SVD, :func:`svd_sweep` on 4 particles at once in SSE
+  registers, runs in the previous substep's particle loop; the
   scatter as one serialized loop on CPU, where Taichi demotes the atomics to plain adds: about 3x faster
   than the parallel atomic scatter and bitwise deterministic; clearing and updating the touched box of the
   grid serially, cheaper than a thread-pool dispatch; the gather and advection in parallel).
@@ -49,6 +50,7 @@ WALL_CELLS = 3  # free-slip band at the side walls and the ceiling
 FLOOR_CELLS = 2  # floor band (nodes j < FLOOR_CELLS get the floor condition)
 P_VOL_FACTOR = 0.125  # particle volume = (dx / 2)^3; the dynamics depend only on E / rho
 RHO = 1.0
+LANES = 4  # particles whose SVDs run side by side in SSE registers (svd_sweep)
 
 _TI_STATE: dict = {}
 
@@ -112,6 +114,68 @@ def taichi_settings() -> dict:
             "cpu_max_num_threads": int(cfg.cpu_max_num_threads), "default_fp": str(cfg.default_fp),
             "opt_level": int(cfg.opt_level), "advanced_optimization": bool(cfg.advanced_optimization),
             "debug": bool(cfg.debug), "random_seed": int(cfg.random_seed)}
+
+
+@ti.func
+def svd_sweep(Fp, V, lanes: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
+    """The warm-started SVD (``physics(...).warm_svd``) of ``lanes`` particles side by side. ``Fp``, ``V``: (9, lanes)
+    matrices, column k holding particle k's 3x3 matrix row-major. Branch-free (selects), so that with 4 lanes LLVM
+    emits SSE square roots and divisions for 4 particles at once (1.6x faster than one at a time on one thread, 5k
+    particles); each lane computes the same operations in the same order as one particle alone, so the floats are
+    the same bits whatever ``lanes`` is. Returns U (9, lanes), sig (3, lanes), V (9, lanes).
+
+    One cyclic Jacobi sweep (3 exact rotations) on V^T (Fp^T Fp) V, then Gram-Schmidt on Fp V. Each rotation J is
+    the identity but for J[p, p] = J[q, q] = c, J[p, q] = sn, J[q, p] = -sn, so only rows and columns p and q
+    change (without fast_math LLVM keeps products with zeros, so they are not written as 3x3 products)."""
+    F3 = [[ti.Vector([Fp[3 * i + j, k] for k in ti.static(range(lanes))]) for j in ti.static(range(3))]
+          for i in ti.static(range(3))]
+    V3 = [[ti.Vector([V[3 * i + j, k] for k in ti.static(range(lanes))]) for j in ti.static(range(3))]
+          for i in ti.static(range(3))]
+    G = [[F3[0][i] * F3[0][j] + F3[1][i] * F3[1][j] + F3[2][i] * F3[2][j] for j in ti.static(range(3))]
+         for i in ti.static(range(3))]  # Fp^T Fp
+    T = [[V3[0][i] * G[0][j] + V3[1][i] * G[1][j] + V3[2][i] * G[2][j] for j in ti.static(range(3))]
+         for i in ti.static(range(3))]  # V^T (Fp^T Fp)
+    S = [[T[i][0] * V3[0][j] + T[i][1] * V3[1][j] + T[i][2] * V3[2][j] for j in ti.static(range(3))]
+         for i in ti.static(range(3))]
+    for p, q in ti.static(((0, 1), (0, 2), (1, 2))):
+        spq = S[p][q]
+        d = 0.5 * (S[q][q] - S[p][p])
+        root = ti.sqrt(d * d + spq * spq)
+        den = ti.select(d >= 0, d + root, d - root)
+        t = ti.select(ti.abs(den) > 1e-30, spq / den, 0.0)
+        c = 1.0 / ti.sqrt(1.0 + t * t)
+        sn = t * c
+        JS = [[S[i][j] for j in ti.static(range(3))] for i in ti.static(range(3))]
+        for j in ti.static(range(3)):  # rows p and q of J^T S
+            JS[p][j] = c * S[p][j] - sn * S[q][j]
+            JS[q][j] = sn * S[p][j] + c * S[q][j]
+        VJ = [[V3[i][j] for j in ti.static(range(3))] for i in ti.static(range(3))]
+        for i in ti.static(range(3)):  # columns p and q of (J^T S) J and of V J
+            VJ[i][p] = c * V3[i][p] - sn * V3[i][q]
+            VJ[i][q] = sn * V3[i][p] + c * V3[i][q]
+        for i, j in ti.static(ti.ndrange(3, 3)):
+            S[i][j] = JS[i][j]
+            V3[i][j] = VJ[i][j]
+        for i in ti.static(range(3)):
+            S[i][p] = c * JS[i][p] - sn * JS[i][q]
+            S[i][q] = sn * JS[i][p] + c * JS[i][q]
+    B = [[F3[i][0] * V3[0][j] + F3[i][1] * V3[1][j] + F3[i][2] * V3[2][j] for j in ti.static(range(3))]
+         for i in ti.static(range(3))]  # Fp V
+    b0 = [B[i][0] for i in ti.static(range(3))]
+    b1 = [B[i][1] for i in ti.static(range(3))]
+    b2 = [B[i][2] for i in ti.static(range(3))]
+    s0 = ti.max(ti.sqrt(b0[0] * b0[0] + b0[1] * b0[1] + b0[2] * b0[2]), 1e-12)
+    u0 = [b0[i] / s0 for i in ti.static(range(3))]
+    g = u0[0] * b1[0] + u0[1] * b1[1] + u0[2] * b1[2]
+    c1 = [b1[i] - g * u0[i] for i in ti.static(range(3))]
+    s1 = ti.max(ti.sqrt(c1[0] * c1[0] + c1[1] * c1[1] + c1[2] * c1[2]), 1e-12)
+    u1 = [c1[i] / s1 for i in ti.static(range(3))]
+    u2 = [u0[1] * u1[2] - u0[2] * u1[1], u0[2] * u1[0] - u0[0] * u1[2], u0[0] * u1[1] - u0[1] * u1[0]]
+    s2 = u2[0] * b2[0] + u2[1] * b2[1] + u2[2] * b2[2]
+    U9 = ti.Matrix([[[u0, u1, u2][j][i][k] for k in ti.static(range(lanes))] for i, j in ti.static(ti.ndrange(3, 3))])
+    V9 = ti.Matrix([[V3[i][j][k] for k in ti.static(range(lanes))] for i, j in ti.static(ti.ndrange(3, 3))])
+    sig = ti.Matrix([[[s0, s1, s2][i][k] for k in ti.static(range(lanes))] for i in ti.static(range(3))])
+    return U9, sig, V9
 
 
 def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
@@ -314,57 +378,17 @@ def physics(n: int, params, tool, statics: dict, differentiable: bool = False):
         return node_bounds(I, vel)
 
     @ti.func
-    def jacobi_rotate(S, V, p: ti.template(), q: ti.template()):  # type: ignore[valid-type]  # Taichi's idiom
-        """One exact Jacobi rotation zeroing S[p, q]; returns (J^T S J, V J)."""
-        spq = S[p, q]
-        d = 0.5 * (S[q, q] - S[p, p])
-        root = ti.sqrt(d * d + spq * spq)
-        den = d + root if d >= 0 else d - root
-        t = 0.0
-        if ti.abs(den) > 1e-30:
-            t = spq / den
-        c = 1.0 / ti.sqrt(1.0 + t * t)
-        sn = t * c
-        # J is the identity but for J[p, p] = J[q, q] = c, J[p, q] = sn, J[q, p] = -sn; only columns and rows
-        # p and q change, so they are written out (without fast_math LLVM may not drop the products with J's
-        # zeros, which made the 3x3 products most of the constitutive update's cost)
-        JS = S
-        for j in ti.static(range(3)):  # rows p and q of J^T S
-            JS[p, j] = c * S[p, j] - sn * S[q, j]
-            JS[q, j] = sn * S[p, j] + c * S[q, j]
-        JSJ = JS
-        VJ = V
-        for i in ti.static(range(3)):  # columns p and q of (J^T S) J and of V J
-            JSJ[i, p] = c * JS[i, p] - sn * JS[i, q]
-            JSJ[i, q] = sn * JS[i, p] + c * JS[i, q]
-            VJ[i, p] = c * V[i, p] - sn * V[i, q]
-            VJ[i, q] = sn * V[i, p] + c * V[i, q]
-        return JSJ, VJ
-
-    @ti.func
     def warm_svd(Fp, V):
         """SVD of Fp warm-started from the previous right singular vectors V (a rotation): one
         cyclic Jacobi sweep on V^T Fp^T Fp V, then Gram-Schmidt on Fp V. F changes by
         (I + dt C) per substep, so V is already nearly right and one sweep suffices; V is
         recomputed by a full SVD at the start of every env step. Returns U, sig, V with U and V
-        rotations (sig[2] < 0 for an inverted element), unsorted."""
-        S = V.transpose() @ (Fp.transpose() @ Fp) @ V
-        S, V = jacobi_rotate(S, V, 0, 1)
-        S, V = jacobi_rotate(S, V, 0, 2)
-        S, V = jacobi_rotate(S, V, 1, 2)
-        B = Fp @ V
-        b0 = ti.Vector([B[0, 0], B[1, 0], B[2, 0]])
-        b1 = ti.Vector([B[0, 1], B[1, 1], B[2, 1]])
-        b2 = ti.Vector([B[0, 2], B[1, 2], B[2, 2]])
-        s0 = ti.max(b0.norm(), 1e-12)
-        u0 = b0 / s0
-        b1 = b1 - u0.dot(b1) * u0
-        s1 = ti.max(b1.norm(), 1e-12)
-        u1 = b1 / s1
-        u2 = u0.cross(u1)
-        s2 = u2.dot(b2)
-        U = ti.Matrix.cols([u0, u1, u2])
-        return U, ti.Vector([s0, s1, s2]), V
+        rotations (sig[2] < 0 for an inverted element), unsorted. (:func:`svd_sweep` on one lane.)"""
+        U9, sig3, V9 = svd_sweep(ti.Matrix([[Fp[i, j]] for i, j in ti.static(ti.ndrange(3, 3))]),
+                                 ti.Matrix([[V[i, j]] for i, j in ti.static(ti.ndrange(3, 3))]), 1)
+        U = ti.Matrix([[U9[3 * i + j, 0] for j in ti.static(range(3))] for i in ti.static(range(3))])
+        Vn = ti.Matrix([[V9[3 * i + j, 0] for j in ti.static(range(3))] for i in ti.static(range(3))])
+        return U, ti.Vector([sig3[0, 0], sig3[1, 0], sig3[2, 0]]), Vn
 
     @ti.func
     def return_map(sig):
@@ -535,16 +559,29 @@ class Engine:
         serial = scatter == "serial"
 
         @ti.func
-        def constitutive_p(p):
-            """Trial F, return mapping, fixed-corotated stress; writes F[p] and the APIC affine matrix A[p]."""
-            Fp = (ti.Matrix.identity(ti.f32, 3) + params[P_DT] * C[p]) @ F[p]
-            U, sig, V = phys.warm_svd(Fp, Vr[p])
-            Vr[p] = V
-            s, _changed = phys.return_map(sig)
-            # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly
-            Fp = phys.compose(U, s, V)
-            F[p] = Fp
-            A[p] = phys.affine(Fp, U, V, s, C[p])
+        def constitutive_group(p0):
+            """The constitutive update of particles p0 .. p0 + LANES - 1 (those below n_p): trial F, the
+            warm-started SVD on LANES lanes at once (:func:`svd_sweep`), return mapping, fixed-corotated stress;
+            writes F, Vr and the APIC affine matrix A. Bitwise what one particle at a time gives."""
+            last_p = n_p[None] - 1
+            Fs = [(ti.Matrix.identity(ti.f32, 3) + params[P_DT] * C[ti.min(p0 + k, last_p)]) @ F[ti.min(p0 + k, last_p)]
+                  for k in ti.static(range(LANES))]
+            Vs = [Vr[ti.min(p0 + k, last_p)] for k in ti.static(range(LANES))]
+            U9, sig3, V9 = svd_sweep(
+                ti.Matrix([[Fs[k][i, j] for k in ti.static(range(LANES))] for i, j in ti.static(ti.ndrange(3, 3))]),
+                ti.Matrix([[Vs[k][i, j] for k in ti.static(range(LANES))] for i, j in ti.static(ti.ndrange(3, 3))]),
+                LANES)
+            for k in ti.static(range(LANES)):
+                p = p0 + k
+                if p <= last_p:
+                    U = ti.Matrix([[U9[3 * i + j, k] for j in ti.static(range(3))] for i in ti.static(range(3))])
+                    V = ti.Matrix([[V9[3 * i + j, k] for j in ti.static(range(3))] for i in ti.static(range(3))])
+                    Vr[p] = V
+                    s, _changed = phys.return_map(ti.Vector([sig3[i, k] for i in ti.static(range(3))]))
+                    # with the approximate SVD always rebuild F so that F = U diag(s) V^T exactly
+                    Fp = phys.compose(U, s, V)
+                    F[p] = Fp
+                    A[p] = phys.affine(Fp, U, V, s, C[p])
 
         # ---------------------------------------------------------------- kernels
         @ti.kernel
@@ -554,7 +591,9 @@ class Engine:
             for p in range(n_p[None]):
                 _U, _sig, V = ti.svd(F[p])
                 Vr[p] = V
-                constitutive_p(p)
+            for p in range(n_p[None]):
+                if p % LANES == 0:
+                    constitutive_group(p)
 
         @ti.kernel
         def substep(t_now: ti.f32, last: ti.i32):
@@ -599,10 +638,13 @@ class Engine:
                     vel = phys.node_velocity(I, gv, t_now)
                     grid[I] = ti.Vector([vel[0], vel[1], vel[2], gv[3]])
             for p in range(n_p[None]):
-                new_v, new_C = phys.gather(grid, x[p])
-                x[p], v[p], C[p] = phys.advance(x[p], new_v, new_C, bad)
-                if last == 0:
-                    constitutive_p(p)
+                if p % LANES == 0:  # LANES particles per iteration (Taichi's CPU tasks of 512 hold whole groups)
+                    for k in ti.static(range(LANES)):
+                        if p + k < n_p[None]:
+                            new_v, new_C = phys.gather(grid, x[p + k])
+                            x[p + k], v[p + k], C[p + k] = phys.advance(x[p + k], new_v, new_C, bad)
+                    if last == 0:
+                        constitutive_group(p)
 
         @ti.kernel
         def check_state() -> ti.i32:
