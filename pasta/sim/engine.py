@@ -610,13 +610,12 @@ class Engine:
             The grid keeps the last substep's values between env steps (the next substep clears them).
             """
             blo, ext = phys.box_extent(bbox)
+            ti.loop_config(serialize=serial)  # the previous substep's box: cheaper than a thread-pool dispatch
+            for tt in range(ext[0] * ext[1] * ext[2]):
+                grid[phys.box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
             lo = ti.Vector([n, n, n])
             hi = ti.Vector([-1, -1, -1])
             if ti.static(serial):
-                ti.loop_config(serialize=True)
-                for i in range(ext[0]):
-                    for j, k in ti.ndrange(ext[1], ext[2]):
-                        grid[blo + ti.Vector([i, j, k])] = ti.Vector.zero(ti.f32, 4)
                 ti.loop_config(serialize=True)
                 for p in range(n_p[None]):
                     base = phys.scatter(grid, x[p], v[p], A[p])
@@ -624,8 +623,6 @@ class Engine:
                     hi = ti.max(hi, base + 2)
                 phys.box_store(bbox, lo, hi)
             else:
-                for tt in range(ext[0] * ext[1] * ext[2]):
-                    grid[phys.box_node(blo, ext, tt)] = ti.Vector.zero(ti.f32, 4)
                 phys.box_store(bbox, lo, hi)  # empty
                 for p in range(n_p[None]):
                     phys.box_include(bbox, phys.scatter(grid, x[p], v[p], A[p]))
