@@ -179,6 +179,8 @@ class Skill:
     #: ``pasta pipeline`` settings of this skill's units, ``{stage: {key: value}}``, over the stage defaults
     #: and under the command line (keys of ``pasta demos`` / ``pasta train <stage>``). The optional stages
     #: ``reset`` and ``select`` run by default only for skills that list them (``{}``: with no settings).
+    #: ``{"demos": {"trajopt_iterations": I, "trajopt_steps": T}}`` is also the skill's budget of trajectory
+    #: optimisation wherever pasta makes its goals so (``pasta.tasks.step.gbto_budget``)
     training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {}
     #: the hooks that making demonstrations needs (see :meth:`has_expert`)
     DEMO_HOOKS: ClassVar[tuple[str, ...]] = ("demo_scene", "sample_expert_params", "expert_approach_pose", "expert")

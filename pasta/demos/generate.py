@@ -51,7 +51,6 @@ from pasta.core.errors import ConfigError
 from pasta.core.files import OutputLock, write_json
 from pasta.demos.workers import MAX_ATTEMPTS, DemoWorkerError
 from pasta.distributed import MAX_WORKERS, BackendConfig, BackendError
-from pasta.tasks.step import GBTO_ITERATIONS, GBTO_STEPS
 from pasta.demos.scene import (DEFAULT, check_demo_skill, check_variant, demo_skills, scene_boxes, scene_particles,
                                variant_config)
 
@@ -88,9 +87,10 @@ class DemoConfig:
         expert: ``scripted`` (the skill's expert) or ``trajopt`` (GBTO toward the skill's ``demo_target``);
             empty: the scripted expert where the skill has one, else GBTO.
         trajopt_iterations: GBTO's Adam iterations per demonstration (each a rollout and its backward pass, ~0.2 s
-            per env step at 5,000 particles on 2 cores). Its other settings are Traj-Opt's defaults
+            per env step at 5,000 particles on 2 cores); 0: the skill's own (:func:`pasta.tasks.step.gbto_budget`:
+            its plugin's ``training_defaults``, else 20). Its other settings are Traj-Opt's defaults
             (:class:`pasta.config.run.TrajOptConfig`).
-        trajopt_steps: the env steps of a GBTO demonstration (paper: 50).
+        trajopt_steps: the env steps of a GBTO demonstration; 0: the skill's own (else 50, the paper's).
     """
 
     skill: str = ""
@@ -105,8 +105,8 @@ class DemoConfig:
     scene: str = "default"
     threads: int = 0
     expert: str = ""
-    trajopt_iterations: int = GBTO_ITERATIONS
-    trajopt_steps: int = GBTO_STEPS
+    trajopt_iterations: int = 0
+    trajopt_steps: int = 0
 
 
 def demo_path(out: str | Path, skill: str, index: int) -> Path:
@@ -129,8 +129,8 @@ def validate(cfg: DemoConfig) -> Path:
     check_variant(cls, cfg.scene)
     check_threads(cfg.threads, "threads")
     expert_kind(cfg, cls)
-    check_int(cfg.trajopt_iterations, "trajopt_iterations", low=1, high=100_000)
-    check_int(cfg.trajopt_steps, "trajopt_steps", low=1, high=MAX_IDLE)
+    check_int(cfg.trajopt_iterations, "trajopt_iterations", low=0, high=100_000)
+    check_int(cfg.trajopt_steps, "trajopt_steps", low=0, high=MAX_IDLE)
     sim_config(cfg)  # the simulator's own checks (n_particles, obs_points), before any simulator starts
     check_output_dir(cfg.out, "out")
     folder = Path(cfg.out).expanduser() / cfg.skill
@@ -255,9 +255,9 @@ class DemoWriter:
         obs = sim.observe()
         if self.expert == "trajopt":
             params, approach, controller = gbto_expert(sim, skill, obs.dough, np.arange(len(obs.dough)), rng,
-                                                       iterations=cfg.trajopt_iterations, steps=cfg.trajopt_steps,
-                                                       variant=cfg.scene)
-            steps = cfg.trajopt_steps
+                                                       iterations=cfg.trajopt_iterations or None,
+                                                       steps=cfg.trajopt_steps or None, variant=cfg.scene)
+            steps = len(controller.actions)
         else:
             params = {k: float(v) for k, v in skill.sample_expert_params(obs.dough, rng).items()}
             approach = skill.expert_approach_pose(obs.dough, params, scene=obs.dough)
@@ -361,8 +361,10 @@ def demo_deadline(cfg: DemoConfig) -> float:
     skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
     if expert_kind(cfg, type(skill)) == "trajopt":  # each iteration a rollout and its backward
         from pasta.sim.trajopt import GRADIENT_STEPS
+        from pasta.tasks.step import gbto_budget
 
-        limit = cfg.trajopt_steps * (1 + GRADIENT_STEPS * cfg.trajopt_iterations)
+        iterations, steps = gbto_budget(skill)
+        limit = (cfg.trajopt_steps or steps) * (1 + GRADIENT_STEPS * (cfg.trajopt_iterations or iterations))
     else:
         limit = int(getattr(skill, "max_steps", 50))  # what run_skill stops the expert at
     return sized_deadline(cfg.settle_steps + limit + cfg.idle_steps, cfg.n_particles)

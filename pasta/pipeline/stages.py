@@ -374,8 +374,11 @@ def skill_class(name: str) -> type[Skill]:
 
 
 def vae_dir(cfg: PipelineConfig, unit: Unit) -> Path:
-    """The VAE a feasibility or cost unit encodes with: its ``vae=`` setting, else ``OUT/vae``."""
-    return Path(unit.configs[1].vae or Path(cfg.out) / VAE_DIR)
+    """The VAE a feasibility or cost unit encodes with: its ``vae=`` setting, else ``OUT/vae`` once trained, else the
+    shipped one (as the trainers choose: a root that trains only a new skill encodes with the shipped latents)."""
+    from pasta.weights import module_dir
+
+    return Path(unit.configs[1].vae or module_dir(cfg.out, VAE_DIR))
 
 
 def digest(directory: Path, name: str = "model.safetensors") -> str:

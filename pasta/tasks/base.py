@@ -396,7 +396,7 @@ class Generation:
         The produced pieces replace the consumed one in :attr:`pieces` (cut: left part at ``piece``,
         right part inserted after it). Returns the indices of the produced pieces in :attr:`pieces`.
         """
-        from pasta.tasks.step import GBTO_STEPS, gbto_expert, run_skill
+        from pasta.tasks.step import gbto_expert, run_skill
 
         skill = self.task.skill(skill_name)
         idx = self.pieces[piece]
@@ -405,7 +405,7 @@ class Generation:
         controller: Any
         if not type(skill).has_expert() and type(skill).has_gbto():
             record, approach, controller = gbto_expert(self.sim, skill, dough, idx, self.rng)
-            params, limit = record, GBTO_STEPS
+            params, limit = record, len(controller.actions)
         else:
             if params is None:
                 params = skill.sample_expert_params(dough[idx], self.rng)

@@ -19,7 +19,8 @@ import numpy as np
 from pasta.core import Controller, InputError, Skill, SkillObservation, StepMonitor, Stop, ToolPose, stop_reason
 from pasta.core.metrics import chamfer
 
-__all__ = ["GBTO_ITERATIONS", "GBTO_STEPS", "GoalMonitor", "Replay", "SkillRun", "Trajectory", "approach_pose", "gbto_expert",
+__all__ = ["GBTO_ITERATIONS", "GBTO_STEPS", "GoalMonitor", "Replay", "SkillRun", "Trajectory", "approach_pose", "gbto_budget",
+           "gbto_expert",
            "piece_indices", "run_skill", "skill_observation"]
 
 
@@ -237,6 +238,15 @@ GBTO_ITERATIONS = 20
 GBTO_STEPS = 50
 
 
+def gbto_budget(skill: Skill | type[Skill]) -> tuple[int, int]:
+    """``(iterations, steps)`` of trajectory optimisation for ``skill``: its plugin's ``training_defaults["demos"]``
+    ``trajopt_iterations`` / ``trajopt_steps`` where it sets them, else :data:`GBTO_ITERATIONS` and
+    :data:`GBTO_STEPS` (the paper's 50 steps). One budget for the skill's demonstrations, the ground-truth steps
+    of tasks and single-skill evaluation, so its goals come from the same optimiser as its demonstrations."""
+    own = dict((skill.training_defaults or {}).get("demos") or {})
+    return int(own.get("trajopt_iterations", GBTO_ITERATIONS)), int(own.get("trajopt_steps", GBTO_STEPS))
+
+
 class Replay(Controller):
     """Plays given actions ``(T, A)`` and stops with the last (what GBTO found)."""
 
@@ -254,18 +264,22 @@ class Replay(Controller):
 
 
 def gbto_expert(sim: Any, skill: Skill, dough: np.ndarray, piece: np.ndarray, rng: np.random.Generator, *,
-                iterations: int = GBTO_ITERATIONS, steps: int = GBTO_STEPS, variant: str = "default"
+                iterations: int | None = None, steps: int | None = None, variant: str = "default"
                 ) -> tuple[dict[str, Any], ToolPose, Replay]:
     """Gradient-based trajectory optimisation in place of a scripted expert, for a skill with ``demo_target``:
     the target of the piece ``dough[piece]`` (the rest of the observed ``dough (P, 3)`` stays where it is), the
     skill's approach pose for it, Adam on ``steps`` actions through the differentiable simulator
-    (:func:`pasta.sim.trajopt.optimise_moves`, Traj-Opt's settings). Returns the record (``expert: trajopt``,
+    (:func:`pasta.sim.trajopt.optimise_moves`, Traj-Opt's settings; ``iterations`` and ``steps``: default the skill's
+    :func:`gbto_budget`). Returns the record (``expert: trajopt``,
     the losses, the best iteration), the approach pose and a controller replaying the best actions: run with
     :func:`run_skill` (``approach=``, ``max_steps=steps``) it makes the optimised rollout, the actions rounded
     to float32 as every controller's. ``sim`` is left as it was."""
     from pasta.config.run import TrajOptConfig
     from pasta.sim.trajopt import ToolMove, optimise_moves, tool_poses
 
+    own_iterations, own_steps = gbto_budget(skill)
+    iterations = own_iterations if iterations is None else int(iterations)
+    steps = own_steps if steps is None else int(steps)
     piece = np.asarray(piece, np.int64)
     others = np.setdiff1d(np.arange(len(dough)), piece)
     moved = np.asarray(skill.demo_target(dough[piece], rng, variant), np.float32)

@@ -2,7 +2,10 @@
 
 A *config* is an initial scene (the skill's demonstration scene, :meth:`pasta.core.Skill.demo_scene`)
 and expert parameters, drawn from a seed that the training demonstrations did not use. Its goal is what the scripted expert makes of the scene (the simulator is
-deterministic): the observed dough after the expert's run. Each controller then starts from the same
+deterministic): the observed dough after the expert's run. A skill without a scripted expert
+(:meth:`pasta.core.Skill.has_gbto`) gets its goal as its demonstrations do: trajectory optimisation toward a
+target its ``demo_target`` draws (:func:`pasta.tasks.step.gbto_expert`, the skill's budget), and the
+"expert" column replays the optimised actions. Each controller then starts from the same
 initial state with that goal cloud as its sub-goal, and is scored by the normalised improvement
 ``(EMD_0 - EMD_T) / EMD_0`` of the observed dough to the goal. The expert's own score is its
 reproducibility (1 for a deterministic simulator).
@@ -41,12 +44,32 @@ MAX_CONFIGS = 10_000
 
 @dataclass
 class SkillConfig:
-    """One held-out single-skill config: the initial simulator state, the expert's params, its index."""
+    """One held-out single-skill config: the initial simulator state, the expert's params, its index, and for a
+    skill without a scripted expert the seed of its goal's trajectory optimisation."""
 
     skill: str
     seed: int
     state: Any
     params: dict[str, float]
+    goal_seed: int = 0
+    optimised: Any = None
+
+    def expert(self, sim: Any, skill: Any) -> tuple[Any, Any, int | None]:
+        """``(approach pose, a fresh expert controller, its step limit)`` of this config, ``sim`` at :attr:`state`:
+        the skill's scripted expert with :attr:`params` (limit: the skill's), or for a skill without one the
+        actions that trajectory optimisation finds toward a target drawn from :attr:`goal_seed`, replayed in
+        full (optimised on the first call, kept in :attr:`optimised`; ``sim`` is left as it was)."""
+        from pasta.tasks.step import Replay, gbto_expert
+
+        piece = sim.observe().dough
+        if type(skill).has_expert() or not type(skill).has_gbto():
+            return skill.expert_approach_pose(piece, self.params, scene=piece), skill.expert(self.params), None
+        if self.optimised is None:
+            _, approach, replay = gbto_expert(sim, skill, piece, np.arange(len(piece)),
+                                              np.random.default_rng(self.goal_seed))
+            self.optimised = (approach, replay.actions)
+        approach, actions = self.optimised
+        return approach, Replay(actions), len(actions)
 
 
 def _scene(skill: Any, rng: np.random.Generator, n: int, floor_y: float, scene: str = "default") -> np.ndarray:
@@ -74,8 +97,10 @@ def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10
             sim.set_tool_pose(name, pose.position, yaw=pose.yaw)
         for _ in range(settle_steps):
             sim.step()
-        params = {k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
-        out.append(SkillConfig(skill.name, i, sim.get_state(), params))
+        params = ({k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
+                  if type(skill).has_expert() else {})
+        goal_seed = 0 if type(skill).has_expert() else int(rng.integers(2**31))
+        out.append(SkillConfig(skill.name, i, sim.get_state(), params, goal_seed))
     return out
 
 
@@ -100,8 +125,8 @@ def evaluate_skill(sim: Any, skill: Any, configs: Sequence[SkillConfig], control
         sim.set_state(cfg.state)
         start = cfg.state
         piece = sim.observe().dough
-        approach = skill.expert_approach_pose(piece, cfg.params, scene=piece)
-        _run(sim, skill, skill.expert(cfg.params), None, approach)
+        approach, expert, limit = cfg.expert(sim, skill)
+        _run(sim, skill, expert, None, approach, max_steps=limit)
         goal = sim.observe().dough
         emd0 = emd(piece, goal, n=emd_points, seed=cfg.seed)
         for name in controllers:
@@ -109,7 +134,8 @@ def evaluate_skill(sim: Any, skill: Any, configs: Sequence[SkillConfig], control
             t0 = time.perf_counter()
             try:
                 if name == "expert":
-                    steps, done = _run(sim, skill, skill.expert(cfg.params), None, approach)
+                    approach, expert, limit = cfg.expert(sim, skill)
+                    steps, done = _run(sim, skill, expert, None, approach, max_steps=limit)
                 else:
                     ctl = skill.policy() if name == "learned" else skill.controller()
                     steps, done = _run(sim, skill, ctl, goal, max_steps=learned_max_steps if name == "learned" else None)
@@ -262,6 +288,13 @@ class EvaluateConfig(SkillRunSettings):
         return [c.strip() for c in str(self.controllers).split(",") if c.strip()]
 
 
+def has_heuristic(skill: Any) -> bool:
+    """Whether the plugin of ``skill`` defines a heuristic controller (overrides :meth:`pasta.core.Skill.controller`)."""
+    from pasta.core import Skill
+
+    return type(skill).controller is not Skill.controller
+
+
 def evaluate_config(overrides: dict[str, Any] | None = None) -> EvaluateConfig:
     """:class:`EvaluateConfig` from ``key=value`` overrides, every value checked before any simulator starts:
     the skills (registered, able to make demonstrations, with scene ``scene``), the controllers, the learned
@@ -313,8 +346,12 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
             skill = get_plugins().skills.create(name, skill_config(name, cfg.scene))
             if "learned" in controllers:
                 load_policy(cfg.policy_dir(name), skill, **kw)
+            own = [c for c in controllers if c != "heuristic" or has_heuristic(skill)]
+            if len(own) < len(controllers):
+                print(f"{name}: no heuristic controller (its plugin defines none); scoring {', '.join(own)}",
+                      file=sys.stderr)
             results[name] = evaluate_skill(sim, skill, make_configs(skill, sim, cfg.n, cfg.seed, scene=cfg.scene),
-                                           controllers, learned_max_steps=cfg.learned_max_steps or None)
+                                           own, learned_max_steps=cfg.learned_max_steps or None)
     if cfg.json:
         write_json(cfg.json, results, indent=1)
     return results

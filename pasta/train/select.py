@@ -101,8 +101,8 @@ def sweep(sim: Any, skill: Any, configs: Sequence[Any], thresholds: Sequence[flo
     for cfg in configs:
         sim.set_state(cfg.state)
         piece = sim.observe().dough
-        approach = skill.expert_approach_pose(piece, cfg.params, scene=piece)
-        run_skill(sim, skill, skill.expert(cfg.params), np.arange(len(piece)), None, approach=approach)
+        approach, expert, limit = cfg.expert(sim, skill)
+        run_skill(sim, skill, expert, np.arange(len(piece)), None, approach=approach, max_steps=limit)
         goal = sim.observe().dough
         emd0 = emd(piece, goal, n=emd_points, seed=cfg.seed)
         sim.set_state(cfg.state)

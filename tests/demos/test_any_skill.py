@@ -7,11 +7,14 @@ from __future__ import annotations
 import json
 import sys
 import textwrap
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 import torch
 
 from pasta.cli import main
+from pasta.core import ToolPose
 from pasta.core.errors import ConfigError
 
 PLUGIN = '''
@@ -250,3 +253,62 @@ def test_a_skill_without_an_expert_gets_task_goals_by_trajectory_optimisation(me
     assert step.skill == "slide" and step.params["expert"] == "trajopt" and step.steps == 50
     assert step.params["losses"][step.params["best_iteration"]] < step.params["losses"][0]
     assert inst.goal[:, 0].mean() < inst.init_points[:, 0].mean() - 0.01
+
+
+class StillSim:
+    """The calls single-skill evaluation makes of a simulator before any step runs (no Taichi)."""
+
+    cfg = SimpleNamespace(n_particles=300)
+    floor_y = 0.02
+
+    def reset(self, particles, seed=None):
+        self.x = np.asarray(particles)
+
+    def set_tool_pose(self, name, position, yaw=0.0):
+        pass
+
+    def observe(self):
+        return SimpleNamespace(dough=self.x)
+
+    def get_state(self):
+        return self.x.copy()
+
+
+def test_single_skill_evaluation_makes_the_goal_of_a_skill_without_an_expert_by_optimisation_once(merge_plugin,
+                                                                                                  monkeypatch):
+    """`pasta train evaluate skills=slide`: each held-out config optimises its goal once, from its own seed, and
+    every expert run replays those actions in full; the skill has no heuristic controller to score."""
+    import pasta.tasks.step as step
+    from pasta.train.evaluate import has_heuristic, make_configs
+
+    seeds = []
+
+    def optimise(sim, skill, dough, piece, rng, **kw):
+        seeds.append(int(rng.integers(2**31)))
+        return {"expert": "trajopt"}, ToolPose((0.5, 0.1, 0.5), 0.0), step.Replay(np.full((7, 4), -0.5))
+
+    monkeypatch.setattr(step, "gbto_expert", optimise)
+    slide, sim = merge_plugin.skills.create("slide"), StillSim()
+    configs = make_configs(slide, sim, 2, seed=1000, settle_steps=0)
+    assert [c.params for c in configs] == [{}, {}] and configs[0].goal_seed != configs[1].goal_seed
+    first, again = configs[0].expert(sim, slide), configs[0].expert(sim, slide)
+    assert len(seeds) == 1 and first[2] == again[2] == 7 and first[1] is not again[1]
+    assert first[0] == again[0] and np.array_equal(first[1].actions, again[1].actions)
+    assert make_configs(slide, sim, 1, seed=1000, settle_steps=0)[0].goal_seed == configs[0].goal_seed
+    # a skill with a scripted expert draws its parameters as before and runs its expert to the skill's limit
+    nudge = merge_plugin.skills.create("nudge")
+    (cfg,) = make_configs(nudge, sim, 1, seed=1000, settle_steps=0)
+    assert set(cfg.params) == {"split_x", "travel"} and cfg.goal_seed == 0 and cfg.expert(sim, nudge)[2] is None
+    assert not has_heuristic(slide) and not has_heuristic(nudge)
+    assert has_heuristic(merge_plugin.skills.create("push"))
+
+
+def test_a_skill_sets_its_own_trajectory_optimisation_budget(merge_plugin, monkeypatch):
+    """`training_defaults["demos"]` of a plugin sets how long GBTO optimises for it: in `pasta demos` (0 keeps the
+    skill's own), the ground-truth steps of tasks and evaluation alike."""
+    from pasta.tasks.step import GBTO_ITERATIONS, GBTO_STEPS, gbto_budget
+
+    slide = type(merge_plugin.skills.create("slide"))
+    assert gbto_budget(slide) == (GBTO_ITERATIONS, GBTO_STEPS)
+    monkeypatch.setattr(slide, "training_defaults", {"demos": {"trajopt_steps": 12}})
+    assert gbto_budget(slide) == (GBTO_ITERATIONS, 12)

@@ -87,8 +87,23 @@ def test_bad_arguments_fail_before_any_work(three_demos, tmp_path, tiny):
     with pytest.raises(ConfigError, match="set by the pipeline; use skills="):
         run_pipeline(_args(three_demos, out, tiny, "feasibility.skill=push"))
     with pytest.raises(ConfigError, match="needs a trained VAE"):
-        run_pipeline(_args(three_demos, out, tiny, "stages=feasibility"))
+        run_pipeline(_args(three_demos, out, tiny, "stages=feasibility", f"feasibility.vae={tmp_path / 'untrained'}"))
     assert not out.exists()
+
+
+def test_a_root_without_a_vae_trains_feasibility_on_the_shipped_one(tmp_path):
+    """`pasta pipeline stages=feasibility,policy skills=NEW out=ROOT`: the root has no VAE and the run trains none,
+    so its feasibility encodes with the shipped VAE, as `pasta train feasibility` does (nothing to copy)."""
+    from pasta.pipeline import PipelineConfig, plan
+    from pasta.pipeline.stages import vae_dir
+    from pasta.weights import ROOT
+
+    cfg = PipelineConfig(data=str(tmp_path / "data"), out=str(tmp_path / "models"), stages="feasibility",
+                         skills="push")
+    (unit,) = plan(cfg, {})
+    assert vae_dir(cfg, unit) == ROOT / "vae"
+    (tmp_path / "models" / "vae").mkdir(parents=True)  # an untrained folder of the root's own is not a VAE
+    assert vae_dir(cfg, unit) == ROOT / "vae"
 
 
 def test_demos_stage_fills_in_missing_demos_then_skips(tmp_path, monkeypatch):
