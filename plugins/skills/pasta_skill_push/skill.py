@@ -198,6 +198,15 @@ class PushSkill(Skill):
                 break
         return {"target_x": float(t[0]), "target_z": float(t[1])}
 
+    def demo_target(self, dough: np.ndarray, rng: np.random.Generator, variant: str = "default") -> np.ndarray:
+        """What demonstrations by trajectory optimisation aim at (``pasta demos skill=push expert=trajopt``, the
+        comparison with the scripted expert in docs/learning.md): the piece ``dough (P, 3)`` slid, unchanged, to a
+        target centroid drawn as the expert draws its own."""
+        piece = as_points(dough, "dough")
+        target = self.sample_expert_params(piece, rng)
+        shift = np.array([target["target_x"], 0.0, target["target_z"]]) - piece.mean(0) * np.array([1.0, 0.0, 1.0])
+        return (piece + shift).astype(np.float32)
+
     def expert(self, params: dict[str, float]) -> Controller:
         missing = {"target_x", "target_z"} - set(params)
         if missing:
