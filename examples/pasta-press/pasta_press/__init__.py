@@ -1,0 +1,1 @@
+"""pasta-press: a press skill whose demonstrations come from trajectory optimisation, not a scripted expert."""
