@@ -29,3 +29,28 @@ def make_dist(tmp_path, monkeypatch):
     yield make
     for module in written:
         sys.modules.pop(module, None)
+
+
+@pytest.fixture
+def install_example(tmp_path, monkeypatch, fresh_plugins):
+    """``install_example(folder, dist, entry, package)``: the example package ``examples/<folder>`` as an installed
+    distribution ``dist`` 0.1.0 would be (a *.dist-info whose entry point ``entry`` names ``<package>.plugin``,
+    found by importlib.metadata like a pip install); returns the rescanned plugins. Its modules are unloaded after."""
+    from pathlib import Path
+
+    packages = []
+
+    def install(folder: str, dist: str, entry: str, package: str):
+        site = tmp_path / "site"
+        info = site / f"{dist.replace('-', '_')}-0.1.0.dist-info"
+        info.mkdir(parents=True)
+        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1.0\n")
+        (info / "entry_points.txt").write_text(f"[pasta.plugins]\n{entry} = {package}.plugin\n")
+        monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "examples" / folder))
+        monkeypatch.syspath_prepend(str(site))
+        packages.append(package)
+        return fresh_plugins()
+
+    yield install
+    for name in [m for m in sys.modules if any(m == p or m.startswith(p + ".") for p in packages)]:
+        sys.modules.pop(name)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,18 +19,9 @@ WEIGHTS = Path(__file__).resolve().parents[2] / "pasta" / "weights"
 
 
 @pytest.fixture
-def pinch_installed(tmp_path, monkeypatch, fresh_plugins):
+def pinch_installed(install_example):
     """pasta-pinch 0.1.0 as an installed distribution (entry point ``pinch = pasta_pinch.plugin``)."""
-    site = tmp_path / "site"
-    info = site / "pasta_pinch-0.1.0.dist-info"
-    info.mkdir(parents=True)
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: pasta-pinch\nVersion: 0.1.0\n")
-    (info / "entry_points.txt").write_text("[pasta.plugins]\npinch = pasta_pinch.plugin\n")
-    monkeypatch.syspath_prepend(str(EXAMPLE))
-    monkeypatch.syspath_prepend(str(site))
-    yield fresh_plugins()
-    for name in [m for m in sys.modules if m == "pasta_pinch" or m.startswith("pasta_pinch.")]:
-        sys.modules.pop(name)
+    return install_example("pasta-pinch", "pasta-pinch", "pinch", "pasta_pinch")
 
 
 def test_listed_with_its_tool_skill_and_planner(pinch_installed, capsys):

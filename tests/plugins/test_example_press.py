@@ -6,7 +6,6 @@ policy (examples/pasta-press/press_weights) in the simulator."""
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,18 +17,9 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "pasta-press"
 
 
 @pytest.fixture
-def press_installed(tmp_path, monkeypatch, fresh_plugins):
+def press_installed(install_example):
     """pasta-press 0.1.0 as an installed distribution (entry point ``press = pasta_press.plugin``)."""
-    site = tmp_path / "site"
-    info = site / "pasta_press-0.1.0.dist-info"
-    info.mkdir(parents=True)
-    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: pasta-press\nVersion: 0.1.0\n")
-    (info / "entry_points.txt").write_text("[pasta.plugins]\npress = pasta_press.plugin\n")
-    monkeypatch.syspath_prepend(str(EXAMPLE))
-    monkeypatch.syspath_prepend(str(site))
-    yield fresh_plugins()
-    for name in [m for m in sys.modules if m == "pasta_press" or m.startswith("pasta_press.")]:
-        sys.modules.pop(name)
+    return install_example("pasta-press", "pasta-press", "press", "pasta_press")
 
 
 def test_listed_as_a_skill_that_makes_demonstrations_by_optimisation(press_installed, capsys):
