@@ -47,7 +47,8 @@ def _require(cond: bool, message: str) -> None:
 
 
 def check_skill(skill: Skill, *, latent_dim: int = 5, batch: int = 7, seed: int = 0) -> None:
-    """Check a skill's spec, feasibility shape/range/permutation invariance, and its hooks' errors.
+    """Check a skill's spec, feasibility shape/range/permutation invariance, its hooks' errors, and for a skill with
+    ``demo_target`` the targets it draws.
 
     Feasibility is only exercised when a model is attached (or the skill overrides ``feasibility``);
     otherwise it must raise :class:`MissingComponentError` naming the skill.
@@ -72,6 +73,34 @@ def check_skill(skill: Skill, *, latent_dim: int = 5, batch: int = 7, seed: int 
         except MissingComponentError:
             continue
         _require(isinstance(ctrl, Controller), f"skill '{skill.name}': {hook}() must return a pasta.core.Controller")
+    if type(skill).has_gbto():
+        _check_demo_target(skill)
+
+
+def _check_demo_target(skill: Skill) -> None:
+    """A skill taught by trajectory optimisation (``demo_scene`` and ``demo_target``): for its demo scene the target
+    is a finite ``(G, 3)`` cloud, the same for the same random stream and different from the scene (a target equal
+    to the scene teaches nothing), and the approach pose toward it is finite."""
+    import numpy as np
+
+    from pasta.demos.scene import scene_particles
+
+    rng = np.random.default_rng(0)
+    dough = scene_particles(skill.demo_scene(rng, 0.02), 1500, rng)[0].astype(np.float32)
+    targets = [np.asarray(skill.demo_target(dough, np.random.default_rng(seed))) for seed in (1, 1)]
+    where = f"skill '{skill.name}': demo_target"
+    t = targets[0]
+    _require(t.ndim == 2 and t.shape[1] == 3 and len(t) > 0, f"{where} must return a (G, 3) cloud, got {t.shape}")
+    _require(bool(np.isfinite(t).all()), f"{where} returned non-finite points")
+    _require(np.array_equal(targets[0], targets[1]), f"{where} must draw every random number from its rng")
+    _require(t.shape != dough.shape or float(np.abs(t - dough).max()) > 1e-3,
+             f"{where} returned the scene itself: nothing for the optimiser to do")
+    try:
+        pose = skill.approach_pose(dough, t, scene=dough)  # type: ignore[call-arg]  # beyond the contract
+    except TypeError:  # the two-argument contract signature
+        pose = skill.approach_pose(dough, t)
+    _require(bool(np.isfinite(np.asarray(pose.position, float)).all()) and bool(np.isfinite(pose.yaw)),
+             f"skill '{skill.name}': approach_pose toward its demo target is not finite: {pose}")
 
 
 def check_encoder(encoder: Encoder, *, num_points: int = 64, seed: int = 0) -> None:

@@ -52,34 +52,6 @@ class SkillContract:
     def test_conforms(self) -> None:
         check_skill(self.make_skill())
 
-    def test_demonstration_target(self) -> None:
-        """A skill taught by trajectory optimisation (``demo_scene`` and ``demo_target``, no scripted expert
-        needed): for its demo scene the target is a finite ``(G, 3)`` cloud, the same for the same random stream
-        and different from the scene (a target equal to the scene teaches nothing), and the approach pose toward
-        it is finite."""
-        skill = self.make_skill()
-        if not type(skill).has_gbto():
-            pytest.skip(f"skill '{skill.name}' defines no demo_target (missing {', '.join(type(skill).missing_gbto_hooks())})")
-        from pasta.demos.scene import scene_particles
-
-        floor_y = 0.02
-        rng = np.random.default_rng(0)
-        dough = scene_particles(skill.demo_scene(rng, floor_y), 1500, rng)[0].astype(np.float32)
-        targets = [np.asarray(skill.demo_target(dough, np.random.default_rng(seed))) for seed in (1, 1, 2)]
-        where = f"skill '{skill.name}': demo_target"
-        for t in targets:
-            assert t.ndim == 2 and t.shape[1] == 3 and len(t) > 0, f"{where} must return a (G, 3) cloud, got {t.shape}"
-            assert np.isfinite(t).all(), f"{where} returned non-finite points"
-        assert np.array_equal(targets[0], targets[1]), f"{where} must draw every random number from its rng"
-        assert targets[0].shape != dough.shape or np.abs(targets[0] - dough).max() > 1e-3, \
-            f"{where} returned the scene itself: nothing for the optimiser to do"
-        try:
-            pose = skill.approach_pose(dough, targets[0], scene=dough)  # type: ignore[call-arg]  # beyond the contract
-        except TypeError:  # the two-argument contract signature
-            pose = skill.approach_pose(dough, targets[0])
-        assert np.isfinite(np.asarray(pose.position, float)).all() and np.isfinite(pose.yaw), \
-            f"skill '{skill.name}': approach_pose toward its demo target is not finite: {pose}"
-
     #: env steps the expert may take (it runs to its done, producing the heuristic controller's goal)
     contract_expert_steps: ClassVar[int] = 200
     #: env steps the heuristic controller runs for

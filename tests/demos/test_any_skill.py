@@ -312,3 +312,20 @@ def test_a_skill_sets_its_own_trajectory_optimisation_budget(merge_plugin, monke
     assert gbto_budget(slide) == (GBTO_ITERATIONS, GBTO_STEPS)
     monkeypatch.setattr(slide, "training_defaults", {"demos": {"trajopt_steps": 12}})
     assert gbto_budget(slide) == (GBTO_ITERATIONS, 12)
+
+
+def test_the_skill_contract_checks_a_demonstration_target(merge_plugin, monkeypatch):
+    """`check_skill` (every SkillContract's test_conforms) refuses a demo_target that returns the scene itself, a
+    non-finite cloud or a new random draw each call, and passes the slide skill's."""
+    from pasta.testing import PluginConformanceError, check_skill
+
+    slide = merge_plugin.skills.create("slide")
+    check_skill(slide)
+    cls = type(slide)
+    for bad, message in ((lambda self, dough, rng, variant="default": dough, "the scene itself"),
+                         (lambda self, dough, rng, variant="default": dough * np.nan, "non-finite"),
+                         (lambda self, dough, rng, variant="default": dough + np.random.default_rng().uniform(0, 0.1),
+                          "every random number from its rng")):
+        monkeypatch.setattr(cls, "demo_target", bad)
+        with pytest.raises(PluginConformanceError, match=message):
+            check_skill(slide)
