@@ -345,6 +345,11 @@ class Skill:
         return [h for h in cls.DEMO_HOOKS if getattr(cls, h) is getattr(Skill, h)]
 
     @classmethod
+    def has_controller(cls) -> bool:
+        """Whether the class defines a heuristic controller (overrides :meth:`controller`)."""
+        return cls.controller is not Skill.controller
+
+    @classmethod
     def has_expert(cls) -> bool:
         """Whether the class overrides every hook demonstrations need: ``demo_scene``, ``sample_expert_params``,
         ``expert_approach_pose`` and ``expert``. ``pasta demos`` and ``pasta pipeline`` take such skills."""

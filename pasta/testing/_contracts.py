@@ -66,7 +66,7 @@ class SkillContract:
         tools = self.plugins().tools
         if skill.tool not in tools or not tools.info(skill.tool).spec.simulated:
             pytest.skip(f"tool '{skill.tool}' of skill '{skill.name}' has no geometry: nothing to simulate")
-        has_controller = cls.controller is not Skill.controller
+        has_controller = cls.has_controller()
         missing = set(cls.missing_demo_hooks())  # the expert runs on a small box when there is no demo scene
         has_expert = not (missing - {"demo_scene"})
         if not (has_expert or has_controller):

@@ -62,7 +62,7 @@ class SkillConfig:
         from pasta.tasks.step import Replay, gbto_expert
 
         piece = sim.observe().dough
-        if type(skill).has_expert() or not type(skill).has_gbto():
+        if not _optimised_goal(skill):
             return skill.expert_approach_pose(piece, self.params, scene=piece), skill.expert(self.params), None
         if self.optimised is None:
             _, approach, replay = gbto_expert(sim, skill, piece, np.arange(len(piece)),
@@ -70,6 +70,11 @@ class SkillConfig:
             self.optimised = (approach, replay.actions)
         approach, actions = self.optimised
         return approach, Replay(actions), len(actions)
+
+
+def _optimised_goal(skill: Any) -> bool:
+    """Whether ``skill``'s goals come from trajectory optimisation: it has no scripted expert but a ``demo_target``."""
+    return not type(skill).has_expert() and type(skill).has_gbto()
 
 
 def _scene(skill: Any, rng: np.random.Generator, n: int, floor_y: float, scene: str = "default") -> np.ndarray:
@@ -97,9 +102,12 @@ def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10
             sim.set_tool_pose(name, pose.position, yaw=pose.yaw)
         for _ in range(settle_steps):
             sim.step()
-        params = ({k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
-                  if type(skill).has_expert() else {})
-        goal_seed = 0 if type(skill).has_expert() else int(rng.integers(2**31))
+        params: dict[str, float] = {}
+        goal_seed = 0
+        if _optimised_goal(skill):
+            goal_seed = int(rng.integers(2**31))
+        else:
+            params = {k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}
         out.append(SkillConfig(skill.name, i, sim.get_state(), params, goal_seed))
     return out
 
@@ -288,13 +296,6 @@ class EvaluateConfig(SkillRunSettings):
         return [c.strip() for c in str(self.controllers).split(",") if c.strip()]
 
 
-def has_heuristic(skill: Any) -> bool:
-    """Whether the plugin of ``skill`` defines a heuristic controller (overrides :meth:`pasta.core.Skill.controller`)."""
-    from pasta.core import Skill
-
-    return type(skill).controller is not Skill.controller
-
-
 def evaluate_config(overrides: dict[str, Any] | None = None) -> EvaluateConfig:
     """:class:`EvaluateConfig` from ``key=value`` overrides, every value checked before any simulator starts:
     the skills (registered, able to make demonstrations, with scene ``scene``), the controllers, the learned
@@ -346,7 +347,7 @@ def evaluate_command(overrides: dict[str, Any] | None = None) -> dict[str, dict[
             skill = get_plugins().skills.create(name, skill_config(name, cfg.scene))
             if "learned" in controllers:
                 load_policy(cfg.policy_dir(name), skill, **kw)
-            own = [c for c in controllers if c != "heuristic" or has_heuristic(skill)]
+            own = [c for c in controllers if c != "heuristic" or type(skill).has_controller()]
             if len(own) < len(controllers):
                 print(f"{name}: no heuristic controller (its plugin defines none); scoring {', '.join(own)}",
                       file=sys.stderr)

@@ -279,7 +279,7 @@ def test_single_skill_evaluation_makes_the_goal_of_a_skill_without_an_expert_by_
     """`pasta train evaluate skills=slide`: each held-out config optimises its goal once, from its own seed, and
     every expert run replays those actions in full; the skill has no heuristic controller to score."""
     import pasta.tasks.step as step
-    from pasta.train.evaluate import has_heuristic, make_configs
+    from pasta.train.evaluate import make_configs
 
     seeds = []
 
@@ -299,8 +299,8 @@ def test_single_skill_evaluation_makes_the_goal_of_a_skill_without_an_expert_by_
     nudge = merge_plugin.skills.create("nudge")
     (cfg,) = make_configs(nudge, sim, 1, seed=1000, settle_steps=0)
     assert set(cfg.params) == {"split_x", "travel"} and cfg.goal_seed == 0 and cfg.expert(sim, nudge)[2] is None
-    assert not has_heuristic(slide) and not has_heuristic(nudge)
-    assert has_heuristic(merge_plugin.skills.create("push"))
+    assert not type(slide).has_controller() and not type(nudge).has_controller()
+    assert type(merge_plugin.skills.create("push")).has_controller()
 
 
 def test_a_skill_sets_its_own_trajectory_optimisation_budget(merge_plugin, monkeypatch):
