@@ -169,14 +169,19 @@ def extra_pieces(plan: Plan, executed: set[int], dough: np.ndarray, labels: np.n
 
 
 def join_labels(points: np.ndarray, labels: np.ndarray, index: np.ndarray, joined: Sequence[np.ndarray]) -> np.ndarray:
-    """``labels (P,)`` of ``points (P, 3)`` with the pieces that hold particles of one group of ``joined``
-    (each an array of particle ids, matched against ``index (P,)``, the observed points' particle ids) made one;
-    renumbered in :func:`pasta.core.decompose.decompose_labels`' order (centroid x, then z, then y)."""
+    """``labels (P,)`` of ``points (P, 3)`` with the pieces made of one group of ``joined`` (each an array of
+    particle ids, matched against ``index (P,)``, the observed points' particle ids) made one; renumbered in
+    :func:`pasta.core.decompose.decompose_labels`' order (centroid x, then z, then y).
+
+    A piece is made of a group when at least half of its points are the group's particles: a stray particle
+    that the perception counts with another piece (a noise point joins its nearest piece, and which piece is
+    nearest changes when pieces move) does not drag that piece into the group."""
     labels = np.asarray(labels).copy()
     for group in joined:
-        inside = np.unique(labels[np.isin(index, group)])
+        member = np.isin(index, group)
+        inside = [e for e in np.unique(labels[member]) if member[labels == e].mean() >= 0.5]
         if len(inside) > 1:
-            labels[np.isin(labels, inside)] = inside.min()
+            labels[np.isin(labels, inside)] = min(inside)
     kept = np.unique(labels)
     centroids = np.round(np.stack([points[labels == e].mean(0) for e in kept]), 6)
     order = np.lexsort((centroids[:, 1], centroids[:, 2], centroids[:, 0]))

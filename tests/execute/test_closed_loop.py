@@ -99,6 +99,21 @@ def test_joined_pieces_are_one_entity_by_particle_identity_in_decomposition_orde
     assert np.array_equal(join_labels(dough, labels, index, []), labels)
 
 
+def test_a_stray_particle_of_a_joined_group_does_not_join_the_piece_it_is_counted_with():
+    # crs seed 1000 under a split: one particle of the split piece's halves was counted with the cut piece
+    # once the halves moved (a noise point joins its nearest piece), and the whole scene became one entity
+    dough, labels = _observed(0.45, 0.53, 0.57)
+    index = np.arange(len(dough)) + 1000
+    group = index[labels >= 1]
+    stray = np.flatnonzero(labels >= 1)[0]
+    labels_now = labels.copy()
+    labels_now[stray] = 0  # the perception now counts that particle with piece 0
+    out = join_labels(dough, labels_now, index, [group])
+    assert out.max() == 1  # two entities: piece 0 (with the stray point) and the joined halves
+    assert np.array_equal(out[labels >= 1][1:], np.ones(int((labels >= 1).sum()) - 1, np.int64))
+    assert (out[labels == 0] == 0).all()
+
+
 def test_warm_start_keeps_the_remaining_sequence_first_and_adds_one_step_anywhere():
     seqs = warm_start_sequences(["push", "roll"], ["cut", "push", "roll"])
     assert seqs[0] == ("push", "roll")
