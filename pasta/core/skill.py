@@ -345,6 +345,12 @@ class Skill:
         return [h for h in cls.DEMO_HOOKS if getattr(cls, h) is getattr(Skill, h)]
 
     @classmethod
+    def goals_by_trajopt(cls) -> bool:
+        """Whether pasta makes this skill's goals (task steps, evaluation configs) by trajectory optimisation:
+        it has no scripted expert but can make demonstrations so (:meth:`has_gbto`)."""
+        return not cls.has_expert() and cls.has_gbto()
+
+    @classmethod
     def has_controller(cls) -> bool:
         """Whether the class defines a heuristic controller (overrides :meth:`controller`)."""
         return cls.controller is not Skill.controller

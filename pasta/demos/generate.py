@@ -254,9 +254,9 @@ class DemoWriter:
             sim.step()
         obs = sim.observe()
         if self.expert == "trajopt":
+            iterations, steps = gbto_settings(cfg, skill)
             params, approach, controller = gbto_expert(sim, skill, obs.dough, np.arange(len(obs.dough)), rng,
-                                                       iterations=cfg.trajopt_iterations or None,
-                                                       steps=cfg.trajopt_steps or None, variant=cfg.scene)
+                                                       iterations=iterations, steps=steps, variant=cfg.scene)
             steps = len(controller.actions)
         else:
             params = {k: float(v) for k, v in skill.sample_expert_params(obs.dough, rng).items()}
@@ -361,13 +361,21 @@ def demo_deadline(cfg: DemoConfig) -> float:
     skill = get_plugins().skills.create(cfg.skill, skill_config(cfg.skill, cfg.scene))
     if expert_kind(cfg, type(skill)) == "trajopt":  # each iteration a rollout and its backward
         from pasta.sim.trajopt import GRADIENT_STEPS
-        from pasta.tasks.step import gbto_budget
 
-        iterations, steps = gbto_budget(skill)
-        limit = (cfg.trajopt_steps or steps) * (1 + GRADIENT_STEPS * (cfg.trajopt_iterations or iterations))
+        iterations, steps = gbto_settings(cfg, skill)
+        limit = steps * (1 + GRADIENT_STEPS * iterations)
     else:
         limit = int(getattr(skill, "max_steps", 50))  # what run_skill stops the expert at
     return sized_deadline(cfg.settle_steps + limit + cfg.idle_steps, cfg.n_particles)
+
+
+def gbto_settings(cfg: DemoConfig, skill: Any) -> tuple[int, int]:
+    """``(iterations, steps)`` of a GBTO demonstration: ``trajopt_iterations`` / ``trajopt_steps``, each 0 meaning
+    the skill's own (:func:`pasta.tasks.step.gbto_budget`)."""
+    from pasta.tasks.step import gbto_budget
+
+    iterations, steps = gbto_budget(skill)
+    return cfg.trajopt_iterations or iterations, cfg.trajopt_steps or steps
 
 
 def demo_init(setup: dict) -> DemoWriter:

@@ -403,7 +403,7 @@ class Generation:
         dough = self.observe()
         limit = None
         controller: Any
-        if not type(skill).has_expert() and type(skill).has_gbto():
+        if type(skill).goals_by_trajopt():
             record, approach, controller = gbto_expert(self.sim, skill, dough, idx, self.rng)
             params, limit = record, len(controller.actions)
         else:

@@ -62,7 +62,7 @@ class SkillConfig:
         from pasta.tasks.step import Replay, gbto_expert
 
         piece = sim.observe().dough
-        if not _optimised_goal(skill):
+        if not type(skill).goals_by_trajopt():
             return skill.expert_approach_pose(piece, self.params, scene=piece), skill.expert(self.params), None
         if self.optimised is None:
             _, approach, replay = gbto_expert(sim, skill, piece, np.arange(len(piece)),
@@ -70,11 +70,6 @@ class SkillConfig:
             self.optimised = (approach, replay.actions)
         approach, actions = self.optimised
         return approach, Replay(actions), len(actions)
-
-
-def _optimised_goal(skill: Any) -> bool:
-    """Whether ``skill``'s goals come from trajectory optimisation: it has no scripted expert but a ``demo_target``."""
-    return not type(skill).has_expert() and type(skill).has_gbto()
 
 
 def _scene(skill: Any, rng: np.random.Generator, n: int, floor_y: float, scene: str = "default") -> np.ndarray:
@@ -104,7 +99,7 @@ def make_configs(skill: Any, sim: Any, n: int, seed: int, settle_steps: int = 10
             sim.step()
         params: dict[str, float] = {}
         goal_seed = 0
-        if _optimised_goal(skill):
+        if type(skill).goals_by_trajopt():
             goal_seed = int(rng.integers(2**31))
         else:
             params = {k: float(v) for k, v in skill.sample_expert_params(sim.observe().dough, rng).items()}

@@ -8,6 +8,15 @@ import textwrap
 import pytest
 
 
+def write_dist_info(site, dist: str, version: str, entries: dict[str, str]) -> None:
+    """A ``<dist>-<version>.dist-info`` under ``site`` whose ``pasta.plugins`` entry points map name -> module:
+    what a pip install leaves for importlib.metadata to find."""
+    info = site / f"{dist.replace('-', '_')}-{version}.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: {version}\n")
+    (info / "entry_points.txt").write_text("[pasta.plugins]\n" + "".join(f"{k} = {v}\n" for k, v in entries.items()))
+
+
 @pytest.fixture
 def make_dist(tmp_path, monkeypatch):
     """``make_dist(dist, module, source, entry="pinch")``: write distribution ``dist`` (version 0.3) whose
@@ -17,11 +26,8 @@ def make_dist(tmp_path, monkeypatch):
     written = []
 
     def make(dist: str, module: str, source: str, entry: str | list[str] = "pinch"):
-        info = tmp_path / f"{dist.replace('-', '_')}-0.3.dist-info"
-        info.mkdir()
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.3\n")
         entries = [entry] if isinstance(entry, str) else entry
-        (info / "entry_points.txt").write_text("[pasta.plugins]\n" + "".join(f"{e} = {module}\n" for e in entries))
+        write_dist_info(tmp_path, dist, "0.3", dict.fromkeys(entries, module))
         (tmp_path / f"{module}.py").write_text(textwrap.dedent(source))
         written.append(module)
         return tmp_path
@@ -42,10 +48,7 @@ def install_example(tmp_path, monkeypatch, fresh_plugins):
 
     def install(folder: str, dist: str, entry: str, package: str):
         site = tmp_path / "site"
-        info = site / f"{dist.replace('-', '_')}-0.1.0.dist-info"
-        info.mkdir(parents=True)
-        (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {dist}\nVersion: 0.1.0\n")
-        (info / "entry_points.txt").write_text(f"[pasta.plugins]\n{entry} = {package}.plugin\n")
+        write_dist_info(site, dist, "0.1.0", {entry: f"{package}.plugin"})
         monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "examples" / folder))
         monkeypatch.syspath_prepend(str(site))
         packages.append(package)
