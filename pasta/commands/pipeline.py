@@ -50,6 +50,7 @@ units and defaults (sized for a 2-core CPU; the settings the shipped models were
 per-skill ones come from each skill plugin's training_defaults and demo_variants):
   demos/<skill>          pasta demos skill=<skill> num=<num_demos> workers=<workers> out=<data>
   demos/push-wide        pasta demos skill=push num=<num_demos + 150> scene=wide ...
+  demos/push-nudge       pasta demos skill=push num=<num_demos + 300> scene=nudge ... (read by policy/push only)
   demos/cut-long         pasta demos skill=cut num=<num_demos + 150> scene=long ... (read by reset/cut only)
   vae                    epochs=11 stride=5 threads=1                       -> OUT/vae
   feasibility/<skill>    threads=1; cut stride=3 (epochs 30) shift_per_positive=5 shift_entities=one

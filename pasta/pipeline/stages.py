@@ -160,11 +160,13 @@ class DemosStage(Stage):
         return {"skill": skill, "out": cfg.data, "num": cfg.num_demos, "workers": cfg.workers}
 
     def variant_units(self, cfg: PipelineConfig, skill: str, values: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
-        out = []
+        # each variant takes the indices after the previous one's (``num`` is the dataset's size after the unit)
+        out, total = [], int(values["num"])
         for variant, decl in skill_class(skill).demo_variants.items():
             num = decl.pipeline_demos if cfg.variant_demos < 0 else cfg.variant_demos
             if num > 0:
-                out.append((f"demos/{skill}-{variant}", {**values, "num": int(values["num"]) + num, "scene": variant}))
+                total += num
+                out.append((f"demos/{skill}-{variant}", {**values, "num": total, "scene": variant}))
         return out
 
     def check_inputs(self, cfg: PipelineConfig, unit: Unit, units: Sequence[Unit]) -> None:

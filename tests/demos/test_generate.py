@@ -68,7 +68,7 @@ def test_long_cut_scene_covers_the_first_cut_of_crs_twice():
 
 def test_scene_variants_are_checked(tmp_path):
     cut = get_plugins().skills.create("cut")
-    assert variants(type(cut)) == ["default", "long"] and variants(get_plugins().skills.load("push")) == ["default", "wide"]
+    assert variants(type(cut)) == ["default", "long"] and variants(get_plugins().skills.load("push")) == ["default", "wide", "nudge"]
     with pytest.raises(ConfigError, match="skill 'cut' has no demonstration scene 'wide'; its scenes: default, long"):
         scene_boxes(cut, np.random.default_rng(0), 0.0, "wide")
     with pytest.raises(ConfigError, match="scene"):

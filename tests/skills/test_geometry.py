@@ -221,6 +221,25 @@ def test_push_params_sample_the_spreading_area(skills):
         assert 0.22 <= p["target_x"] <= 0.32 and 0.3 <= p["target_z"] <= 0.7
 
 
+def test_push_nudge_targets_lie_in_their_ring_and_box(skills):
+    import dataclasses
+
+    from pasta_skill_push.skill import PushSkill
+
+    variant = PushSkill.demo_variants["nudge"]
+    skill = PushSkill(dataclasses.replace(skills["push"].config, **variant.config))
+    cfg, c = skill.config, PIECE[:, [0, 2]].mean(0)
+    rng = np.random.default_rng(2)
+    for _ in range(50):
+        p = skill.sample_expert_params(PIECE, rng)
+        assert cfg.min_distance <= math.hypot(p["target_x"] - c[0], p["target_z"] - c[1]) <= cfg.max_distance
+        assert cfg.target_x_min <= p["target_x"] <= cfg.target_x_max and cfg.target_z_min <= p["target_z"] <= cfg.target_z_max
+    with pytest.raises(InputError, match="max_distance 0.01 is below min_distance"):
+        PushSkill(dataclasses.replace(cfg, max_distance=0.01)).sample_expert_params(PIECE, rng)
+    with pytest.raises(InputError, match="lies in the target box"):  # the ring misses a box far from the piece
+        PushSkill(dataclasses.replace(cfg, target_x_min=0.0, target_x_max=0.01)).sample_expert_params(PIECE, rng)
+
+
 # -- roll --------------------------------------------------------------------------------------
 def test_roll_measures_on_clouds():
     flat = box((0.27, FLOOR + 0.009, 0.5), (0.3, 0.018, 0.12), n=2000, seed=6)

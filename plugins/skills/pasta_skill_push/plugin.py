@@ -23,6 +23,8 @@ class PushConfig:
         tolerance: done when the centroid is this close to the target along the push line.
         target_x_min, target_x_max, target_z_min, target_z_max: expert sampling box of target centroids.
         min_distance: expert sampling: targets at least this far from the piece centroid.
+        max_distance: expert sampling: targets at most this far from the piece centroid (0: anywhere in the
+            box); the ``nudge`` demonstrations' short corrections.
         max_face_slide: heuristic approach only: the paddle may also slide along its face by up to this
             (while still spanning the piece) to clear neighbouring dough before the face is turned away
             from the push direction (a turned face let a piece slide off it: crs seed 1012, where a cut
@@ -43,6 +45,7 @@ class PushConfig:
     target_z_min: float = 0.3
     target_z_max: float = 0.7
     min_distance: float = 0.08
+    max_distance: float = 0.0
     max_face_slide: float = 0.04
     align_after: float = 0.02
 

@@ -160,8 +160,16 @@ class PushSkill(Skill):
     heuristic_fields: tuple[str, ...] = ("max_face_slide", "align_after")
     #: ``scene=wide``: pieces up to 0.25 long anywhere on the right of the workspace, pushed to targets
     #: with x up to 0.7 (the default box ends at 0.32), as cut_rearrange needs
-    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {"wide": DemoVariant(config={"target_x_max": 0.7}, pipeline_demos=150,
-                                         description="pieces up to 0.25 long on the right, targets with x up to 0.7")}
+    #: ``scene=nudge``: pieces 0.05-0.2 long anywhere on the table, pushed 4.5-9 cm in any direction: the corrections a
+    #: closed loop asks for after a piece slid (the other demonstrations all travel 8 cm or more); policy only
+    demo_variants: ClassVar[Mapping[str, DemoVariant]] = {
+        "wide": DemoVariant(config={"target_x_max": 0.7}, pipeline_demos=150,
+                            description="pieces up to 0.25 long on the right, targets with x up to 0.7"),
+        "nudge": DemoVariant(config={"target_x_min": 0.12, "target_x_max": 0.92, "target_z_min": 0.25,
+                                     "target_z_max": 0.75, "min_distance": 0.045, "max_distance": 0.09},
+                             pipeline_demos=150, stages=("policy",),
+                             description="pieces 0.05-0.2 long anywhere on the table, pushed 4.5-9 cm in any direction"),
+    }
     #: the policy sees its step count, the tool pose and the goal offset (with these and the wide demonstrations,
     #: 0.96 on held-out wide configs; the one-frame policy of the default demonstrations alone, 0.45)
     training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
@@ -189,9 +197,22 @@ class PushSkill(Skill):
         return ToolPose(PUSHER_PARK, 0.0)
 
     def sample_expert_params(self, piece: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
-        """A target centroid uniform in the config's box, at least ``min_distance`` from the piece."""
+        """A target centroid uniform in the config's box, at least ``min_distance`` from the piece; with
+        ``max_distance`` set, at a distance U(min_distance, max_distance) in a uniform direction, inside the box."""
         c = as_points(piece, "piece")[:, [0, 2]].mean(0)
         cfg = self.config
+        if cfg.max_distance > 0:
+            if cfg.max_distance < cfg.min_distance:
+                raise InputError(f"push: max_distance {cfg.max_distance} is below min_distance {cfg.min_distance}")
+            for _ in range(1000):
+                a, r = rng.uniform(-math.pi, math.pi), rng.uniform(cfg.min_distance, cfg.max_distance)
+                t = c + r * np.array([math.cos(a), math.sin(a)])
+                if cfg.target_x_min <= t[0] <= cfg.target_x_max and cfg.target_z_min <= t[1] <= cfg.target_z_max:
+                    break
+            else:
+                raise InputError(f"push: no target {cfg.min_distance}-{cfg.max_distance} from the piece at "
+                                 f"({c[0]:.3f}, {c[1]:.3f}) lies in the target box")
+            return {"target_x": float(t[0]), "target_z": float(t[1])}
         for _ in range(1000):
             t = np.array([rng.uniform(cfg.target_x_min, cfg.target_x_max), rng.uniform(cfg.target_z_min, cfg.target_z_max)])
             if np.linalg.norm(t - c) >= cfg.min_distance:
@@ -217,7 +238,11 @@ class PushSkill(Skill):
         return PushController(self.config)
 
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
-        """A small piece right of the spreading area (``"wide"``: a piece 0.1-0.25 long with x in 0.4-0.93)."""
+        """A small piece right of the spreading area (``"wide"``: a piece 0.1-0.25 long with x in 0.4-0.93;
+        ``"nudge"``: a piece 0.05-0.2 long with x in 0.15-0.9, z in 0.3-0.7)."""
+        if variant == "nudge":
+            size = (rng.uniform(0.05, 0.2), HEIGHT, rng.uniform(0.05, 0.1))
+            return [((rng.uniform(0.15 + size[0] / 2, 0.9 - size[0] / 2), floor_y + HEIGHT / 2, rng.uniform(0.3, 0.7)), size)]
         if variant == "wide":
             size = (rng.uniform(0.1, 0.25), HEIGHT, rng.uniform(0.06, 0.1))
             x = rng.uniform(0.4, 0.93 - size[0] / 2)
