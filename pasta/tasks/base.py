@@ -273,8 +273,13 @@ class Task(TaskInterface):
             for tool in (skill.tool, *skill.demo_tools()):
                 tools[tool] = repr(plugins.tools.info(tool).spec)
         config = {k: v for k, v in asdict(self.config).items() if k not in (*self.scoring_fields, "name")}
+        # an instance's states name every tool of the simulator that made it (parked where unused), and a
+        # simulator refuses a state naming a tool it lacks: an instance cached while a plugin's tool was
+        # installed must not be read after it is gone
+        simulated = [spec.name for spec in plugins.simulated_tools()]
         blob = json.dumps({"task": self.name, "config": config, "sim": asdict(self.sim_config), "skills": skills,
-                           "tools": tools, "generator": GENERATOR_VERSION}, sort_keys=True, default=str)
+                           "tools": tools, "simulated_tools": simulated, "generator": GENERATOR_VERSION},
+                          sort_keys=True, default=str)
         return hashlib.sha1(blob.encode()).hexdigest()[:12]
 
     def rng(self, seed: int, attempt: int = 0) -> np.random.Generator:

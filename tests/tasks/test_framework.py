@@ -153,6 +153,28 @@ def test_cache_key_depends_on_config():
     assert a.cache_path(1000).name.startswith("seed01000-")
 
 
+def test_cache_key_depends_on_every_simulated_tool(monkeypatch):
+    """An instance cached while a plugin's tool was installed names that tool in its states, which a simulator
+    without it refuses: such an entry must not be read once the plugin is gone (nor the other way round)."""
+    import dataclasses
+
+    import pasta.plugins
+
+    real = pasta.plugins.get_plugins()
+    task = get_task("push")
+    without = task.key()
+
+    class WithPincer:  # the installed plugins plus one tool of a plugin the push task does not use
+        def __getattr__(self, name):
+            return getattr(real, name)
+
+        def simulated_tools(self):
+            return [*real.simulated_tools(), dataclasses.replace(real.simulated_tools()[0], name="pincer")]
+
+    monkeypatch.setattr(pasta.plugins, "get_plugins", WithPincer)
+    assert task.key() != without
+
+
 def test_check_push_records_missed_targets_and_disturbed_pieces():
     from types import SimpleNamespace
 
