@@ -277,9 +277,9 @@ def _rows(results: Path, name: str) -> list[dict]:
 
 def _footnoted(lines: list[str]) -> str:
     if any(OUTSIDE_SCENE in line for line in lines):
-        lines += ["", f"{OUTSIDE_SCENE} Made by an earlier pasta, to be re-run: with the cost model shipped before "
-                  "2026-12-05 (which could not tell heights apart, docs/planning.md), and in tasks without the board "
-                  "with the lift among the candidates (the scene now leaves it out, docs/planning.md, \"The scene\")."]
+        lines += ["", f"{OUTSIDE_SCENE} Made by an earlier pasta, to be re-run: with networks other than the shipped "
+                  "ones (the row's `weights` digests), or with a skill among the candidates that the task's scene now "
+                  "leaves out (docs/planning.md, \"The scene\")."]
     return "\n".join(lines) + "\n"
 
 
