@@ -224,10 +224,10 @@ def test_push_params_sample_the_spreading_area(skills):
 def test_push_nudge_targets_lie_in_their_ring_and_box(skills):
     import dataclasses
 
+    from pasta.demos.generate import skill_config
     from pasta_skill_push.skill import PushSkill
 
-    variant = PushSkill.demo_variants["nudge"]
-    skill = PushSkill(dataclasses.replace(skills["push"].config, **variant.config))
+    skill = PushSkill(skill_config("push", "nudge"))  # the config `pasta demos skill=push scene=nudge` samples with
     cfg, c = skill.config, PIECE[:, [0, 2]].mean(0)
     rng = np.random.default_rng(2)
     for _ in range(50):
