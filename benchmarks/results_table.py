@@ -91,8 +91,17 @@ def loop_names() -> list[str]:
 
 
 def _summary(results: Path, name: str) -> dict | None:
+    """The summary ``name.json`` with ``executed_skills`` (the skills of the steps its episodes, ``name.jsonl``,
+    executed; absent without that file)."""
     path = results / f"{name}.json"
-    return json.loads(path.read_text()) if path.exists() else None
+    if not path.exists():
+        return None
+    summary = json.loads(path.read_text())
+    episodes = path.with_suffix(".jsonl")
+    if episodes.exists():
+        summary["executed_skills"] = sorted({step["skill"] for line in episodes.read_text().splitlines() if line.strip()
+                                             for step in json.loads(line).get("steps") or []})
+    return summary
 
 
 #: the mark of a row made by an earlier pasta: planned with a skill its task's scene does not allow (before the scene
@@ -116,7 +125,8 @@ def stale(summary: dict) -> list[str]:
 def other_weights(summary: dict) -> list[str]:
     """The checkpoints ``summary``'s row was made with that differ from those its settings load now (digests of
     ``model.safetensors``); ``["unrecorded"]`` for a row made before rows recorded their weights (2026-12-05, when the
-    shipped cost model was retrained). Rows of :data:`NOT_PLANNED` methods are left out (the scene-level models did not change; SAC has its own)."""
+    shipped cost model was retrained). A skill's policy counts only where the row executed that skill
+    (``executed_skills``, when known): a policy that never acted leaves the row as it is. Rows of :data:`NOT_PLANNED` methods are left out (the scene-level models did not change; SAC has its own)."""
     from pasta.io.checkpoint import weights_digest
     from pasta.weights import ROOT as SHIPPED
     from pasta.weights import module_dir
@@ -137,6 +147,10 @@ def other_weights(summary: dict) -> list[str]:
 
     root = local(config.get("models") or str(SHIPPED))
     where = {"encoder": local(config["encoder"]["weights"]), "cost": local(config["cost_model"]["weights"])}
+    executed = summary.get("executed_skills")
+    if executed is not None:
+        recorded = {name: digest for name, digest in recorded.items()
+                    if not name.startswith("policy/") or name.split("/", 1)[1] in executed}
     return sorted(name for name, digest in recorded.items()
                   if weights_digest(where.get(name, module_dir(root, name))) != digest)
 

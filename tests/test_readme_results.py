@@ -85,6 +85,22 @@ def test_rows_made_with_other_weights_than_the_shipped_ones_are_marked():
     assert rt.other_weights({**row, "weights": {**current, "cost": "0" * 16}}) == ["cost"]
     assert rt.other_weights({**row, "weights": None}) == ["unrecorded"]
     assert rt.stale({**row, "weights": None, "skills": ["lift"]}) == ["scene", "weights"]
+    # a policy counts only where the row executed its skill
+    changed = {**current, "policy/roll": "0" * 16}
+    assert rt.other_weights({**row, "weights": changed}) == ["policy/roll"]  # not known what was executed
+    assert rt.other_weights({**row, "weights": changed, "executed_skills": ["cut", "roll"]}) == ["policy/roll"]
+    assert rt.other_weights({**row, "weights": changed, "executed_skills": ["cut"]}) == []
+
+
+def test_summaries_know_the_skills_their_episodes_executed(tmp_path):
+    rt = _script()
+    (tmp_path / "t_pasta.json").write_text(json.dumps({"task": "t"}))
+    assert "executed_skills" not in rt._summary(tmp_path, "t_pasta")
+    episodes = [{"seed": 0, "steps": [{"skill": "push"}, {"skill": "cut"}]}, {"seed": 1, "steps": []},
+                {"seed": 2, "steps": [{"skill": "push"}]}]
+    (tmp_path / "t_pasta.jsonl").write_text("".join(json.dumps(e) + "\n" for e in episodes))
+    assert rt._summary(tmp_path, "t_pasta")["executed_skills"] == ["cut", "push"]
+    assert rt._summary(tmp_path, "missing") is None
 
 
 def test_no_episode_of_a_current_row_plans_a_skill_its_scene_leaves_out():

@@ -54,6 +54,13 @@ class PolicyTrainConfig:
             first step with a vertical action, :func:`pasta.train.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
             the policy never learns the align motion the reset pose replaces (cut).
+        decoded_goals: probability that a piece of a demonstration's final-state goal is replaced by its VAE
+            reconstruction (``encoder_weights``; empty: the shipped VAE), as a plan's decoded sub-goals
+            are at execution (:mod:`pasta.train.decoded`; hindsight goals stay exact).
+        decoded_noise: std of Gaussian noise on the shape code of those reconstructions (4 per piece).
+        decoded_shift: a reconstruction is moved by up to this much per axis (metres): a plan's sub-goal
+            sits a little off where the demonstration put the dough, and the policy should still finish it.
+        encoder_weights: the VAE directory for ``decoded_goals`` (empty: the shipped VAE).
     """
 
     hindsight_ratio: float = 0.5
@@ -71,6 +78,10 @@ class PolicyTrainConfig:
     pose_feature: bool = PolicyConfig.pose_feature
     goal_feature: bool = PolicyConfig.goal_feature
     start_at_reset: bool = False
+    decoded_goals: float = 0.0
+    decoded_noise: float = 0.0
+    decoded_shift: float = 0.0
+    encoder_weights: str = ""
 
     def __post_init__(self) -> None:
         from pasta.config.validate import check_ranges
@@ -79,7 +90,8 @@ class PolicyTrainConfig:
         check_ranges(self, {"hindsight_ratio": (0.0, 1.0), "noise": (0.0, None), "val_fraction": (0.0, 1.0, "[)"),
                             "steps_per_epoch": (1, None), "val_batches": (1, None), "done_weight": (0.0, None),
                             "done_pos_weight": (0.0, None), "dough_points": (1, MAX_POINTS),
-                            "tool_points": (1, MAX_POINTS), "goal_points": (1, MAX_POINTS), "max_demos": (0, None)})
+                            "tool_points": (1, MAX_POINTS), "goal_points": (1, MAX_POINTS), "max_demos": (0, None),
+                            "decoded_goals": (0.0, 1.0), "decoded_noise": (0.0, None), "decoded_shift": (0.0, None)})
 
 
 def _to_torch(b: Batch) -> dict[str, torch.Tensor]:
@@ -159,7 +171,16 @@ def make_task(skill: str, data: str | Path, cfg: PolicyTrainConfig, *, network: 
     train_demos, val_demos = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=seed)
     kw: dict[str, Any] = {"dough_points": cfg.dough_points, "tool_points": cfg.tool_points, "goal_points": cfg.goal_points,
           "hindsight_ratio": cfg.hindsight_ratio}
-    train = DemoSet(train_demos, noise=cfg.noise, **kw)
+    decoded = None
+    if cfg.decoded_goals > 0:
+        from pasta.train.decoded import decoded_pieces, load_encoder
+
+        encoder, rng = load_encoder(cfg.encoder_weights), np.random.default_rng(seed)
+        draws = 4 if cfg.decoded_noise > 0 else 1
+        decoded = [decoded_pieces(np.asarray(d.dough[-1], np.float32), encoder, noise=cfg.decoded_noise, draws=draws,
+                                  rng=rng) for d in train_demos]
+    train = DemoSet(train_demos, noise=cfg.noise, decoded=decoded, p_decoded=cfg.decoded_goals,
+                    decoded_shift=cfg.decoded_shift, **kw)
     val = DemoSet(val_demos or train_demos, noise=0.0, **kw)
     if tool is None:
         tool = _skill_tool(skill)
@@ -219,6 +240,10 @@ def policy_configs(overrides: Mapping[str, Any] | None = None) -> tuple[LoopConf
 
     loop, cfg = build_many({**LOOP_DEFAULTS, **dict(overrides or {})}, [LoopConfig, PolicyTrainConfig],
                            command="pasta train policy")
+    if cfg.decoded_goals > 0:
+        from pasta.train.decoded import check_encoder_weights
+
+        check_encoder_weights(cfg.encoder_weights)
     return loop, cfg
 
 

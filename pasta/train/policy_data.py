@@ -26,6 +26,7 @@ import numpy as np
 
 from pasta.core.errors import InputError
 from pasta.demos.data import Demo
+from pasta.train.decoded import DecodedPieces, goal_draw
 
 __all__ = ["Batch", "DemoSet"]
 
@@ -58,10 +59,16 @@ class DemoSet:
         dough_points, tool_points, goal_points: points per source in a sample.
         hindsight_ratio: probability of a hindsight goal instead of the final state.
         noise: half-width of the uniform point noise (0 to disable, e.g. for validation).
+        decoded: per demonstration, the pieces of its final state with their VAE reconstructions
+            (:func:`pasta.train.decoded.decoded_pieces`); a final-state goal (not a hindsight one) has each
+            piece replaced by a reconstruction with probability ``p_decoded``, moved by up to
+            ``decoded_shift`` per axis (:func:`pasta.train.decoded.goal_draw`): the sub-goals a plan hands
+            the policy at execution.
     """
 
     def __init__(self, demos: Sequence[Demo], *, dough_points: int = 512, tool_points: int = 100, goal_points: int = 512,
-                 hindsight_ratio: float = 0.5, noise: float = 0.005) -> None:
+                 hindsight_ratio: float = 0.5, noise: float = 0.005, decoded: Sequence[DecodedPieces] | None = None,
+                 p_decoded: float = 0.0, decoded_shift: float = 0.0) -> None:
         if not demos:
             raise InputError("DemoSet needs at least one demonstration")
         dims = {d.action.shape[1] for d in demos}
@@ -73,6 +80,9 @@ class DemoSet:
         self.sizes = (dough_points, tool_points, goal_points)
         self.hindsight_ratio = hindsight_ratio
         self.noise = noise
+        if decoded is not None and len(decoded) != len(self.demos):
+            raise InputError(f"decoded goals for {len(decoded)} demonstrations, but there are {len(self.demos)}")
+        self.decoded, self.p_decoded, self.decoded_shift = decoded, p_decoded, decoded_shift
         lengths = np.array([d.action.shape[0] for d in demos])
         self.index = np.concatenate([np.stack([np.full(n, i), np.arange(n)], 1) for i, n in enumerate(lengths)])
 
@@ -98,7 +108,10 @@ class DemoSet:
                 tg = last
             out["dough"].append(_subsample(demo.dough[t], p, rng))
             out["tool"].append(_subsample(demo.tool_points[t], tp, rng))
-            out["goal"].append(_subsample(demo.dough[tg + 1], gp, rng))
+            goal = demo.dough[tg + 1]
+            if self.decoded is not None and tg == last:
+                goal = goal_draw(goal, self.decoded[di], self.p_decoded, rng, self.decoded_shift)
+            out["goal"].append(_subsample(goal, gp, rng))
             out["action"].append(demo.action[t])
             out["done"].append(float(t == tg))
             out["step"].append(float(t))

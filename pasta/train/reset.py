@@ -24,9 +24,10 @@ from torch import nn
 from pasta.core.errors import ConfigError
 from pasta.core.files import write_json
 from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, reset_inputs, x_at_share
+from pasta.train.decoded import check_encoder_weights, decoded_pieces, goal_draw, load_encoder
 from pasta.train.loop import LoopConfig, fit, numpy_rng, torch_threads
 
-__all__ = ["LOOP_DEFAULTS", "ResetTask", "ResetTrainConfig", "align_offset", "decoded_pieces", "reset_command",
+__all__ = ["LOOP_DEFAULTS", "ResetTask", "ResetTrainConfig", "align_offset", "reset_command",
            "reset_configs", "share_below", "train_command", "train_reset"]
 
 
@@ -62,44 +63,13 @@ def _dataset(demos: Sequence[Any], skill: Any = None, x_share: bool = False) -> 
     return out
 
 
-def decoded_pieces(goal: np.ndarray, encoder: Any, *, noise: float = 0.0, draws: int = 1,
-                   rng: np.random.Generator | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The pieces of ``goal (G, 3)`` (DBSCAN, :func:`pasta.core.decompose.decompose_labels`), each with
-    ``draws`` reconstructions by ``encoder`` ``(draws, n, 3)`` (encoded, Gaussian ``noise`` on the shape
-    code ``z``, decoded to the piece's own point count ``n``): the kind of piece a plan's decoded sub-goal
-    hands a policy at execution, where the planner chose the shape code. ``encoder``: a
-    :class:`pasta.core.Encoder` (:meth:`~pasta.core.Encoder.decode_clouds`)."""
-    from pasta.core.decompose import decompose_labels
-
-    rng = rng or np.random.default_rng(0)
-    labels = decompose_labels(goal)
-    pieces = [np.asarray(goal[labels == k], np.float32) for k in range(int(labels.max()) + 1)]
-    z_dim = int(getattr(encoder, "z_dim", 0))
-    out = []
-    for piece in pieces:
-        with torch.no_grad():
-            u = torch.as_tensor(encoder.encode(piece[None])).repeat(max(1, draws), 1)
-        if noise > 0 and z_dim:
-            u[:, :z_dim] += noise * torch.as_tensor(rng.standard_normal((len(u), z_dim)), dtype=u.dtype)
-        out.append((piece, np.stack(encoder.decode_clouds(u, len(piece)))))
-    return out
-
-
-def _goal_draw(goal: np.ndarray, pieces: Sequence[tuple[np.ndarray, np.ndarray]] | None, p: float,
-               rng: np.random.Generator) -> np.ndarray:
-    """``goal`` with each of its ``pieces`` replaced by one of its reconstructions with probability ``p``."""
-    if not pieces or p <= 0:
-        return goal
-    return np.concatenate([recs[rng.integers(len(recs))] if rng.random() < p else exact for exact, recs in pieces])
-
-
 def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: float,
            decoded: Sequence[Any] | None = None, p_decoded: float = 0.0,
            piece_share: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
     xs, ys = [], []
     for i, (dough, goal, off, _) in enumerate(items):
         if decoded is not None:
-            goal = _goal_draw(goal, decoded[i], p_decoded, rng)
+            goal = goal_draw(goal, decoded[i], p_decoded, rng)
         pts, _ = reset_inputs(dough, goal, n, rng, piece_share)
         if noise > 0:
             pts[:, :3] += rng.uniform(-noise, noise, pts[:, :3].shape).astype(np.float32)
@@ -286,12 +256,8 @@ def reset_configs(overrides: Mapping[str, Any] | None = None, *, command: str = 
     from pasta.config.overrides import build_many
 
     loop, cfg = build_many({**LOOP_DEFAULTS, **dict(overrides or {})}, [LoopConfig, ResetTrainConfig], command=command)
-    if cfg.decoded_goals > 0 and cfg.encoder_weights:
-        from pasta.io.checkpoint import checkpoint_exists
-
-        if not checkpoint_exists(cfg.encoder_weights):
-            raise ConfigError(f"encoder_weights={cfg.encoder_weights}: no trained VAE there (model.safetensors and "
-                              "model.json); give a `pasta train vae` output, or leave it empty for the shipped one")
+    if cfg.decoded_goals > 0:
+        check_encoder_weights(cfg.encoder_weights)
     return loop, cfg
 
 
@@ -313,10 +279,7 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
                               outputs=outputs, piece_share=cfg.piece_share, x_share=cfg.x_share)
         encoder = None
         if cfg.decoded_goals > 0:
-            from pasta.nn.config import PointVAEEncoderConfig
-            from pasta.nn.encoders import PointVAEEncoder
-
-            encoder = PointVAEEncoder(PointVAEEncoderConfig(weights=cfg.encoder_weights))
+            encoder = load_encoder(cfg.encoder_weights)
         _, metrics = train_reset(train, val, net_cfg, out=out, loop=loop, noise=cfg.noise, skill=skill_obj,
                                  encoder=encoder, decoded_goals=cfg.decoded_goals, decoded_noise=cfg.decoded_noise)
     metrics = {"module": MODULE, "skill": skill, "data": str(data), "start_step": cfg.start_step, **metrics}

@@ -41,6 +41,39 @@ def test_done_label_belongs_to_the_goal_chosen(ratio):
         assert (g < 6).any()
 
 
+def test_decoded_goals_replace_final_goals_only_and_shift_them():
+    """With decoded goals, a final-state goal is the reconstruction (shifted by at most decoded_shift per axis)
+    with the given probability; hindsight goals and every label stay as they were."""
+    demo = _counting_demo()
+    recon = np.full((2, 10, 3), 100.0, np.float32)  # two draws of the final state's one piece, easy to tell apart
+    ds = DemoSet([demo], dough_points=5, tool_points=2, goal_points=5, hindsight_ratio=0.5, noise=0.0,
+                 decoded=[[(demo.dough[-1], recon)]], p_decoded=0.5, decoded_shift=0.03)
+    rng = np.random.default_rng(0)
+    b = ds.sample(rng.integers(0, len(ds), 600), rng)
+    t, g = b.dough[:, 0, 0], b.goal[:, 0, 0]
+    decoded = g > 50
+    final = (g == 6) | decoded
+    assert decoded.any() and (g == 6).any()  # both kinds of final goal
+    assert 0.3 < decoded.sum() / final.sum() < 0.7
+    assert np.abs(b.goal[decoded] - 100.0).max() <= 0.03 + 1e-6 and np.abs(b.goal[decoded] - 100.0).max() > 0.01
+    assert np.ptp(b.goal[decoded][:, :, 0], axis=1).max() < 1e-6  # one offset per piece, not per point
+    np.testing.assert_array_equal(b.done[decoded], (t[decoded] == 5).astype(np.float32))
+    hindsight = ~final
+    np.testing.assert_array_equal(b.done[hindsight], (g[hindsight] == t[hindsight] + 1).astype(np.float32))
+    with pytest.raises(InputError, match="decoded goals for 2 demonstrations"):
+        DemoSet([demo], decoded=[[], []], p_decoded=0.5)
+
+
+def test_decoded_goal_settings_are_checked():
+    from pasta.core.errors import ConfigError
+    from pasta.train.policy import policy_configs
+
+    with pytest.raises(ConfigError, match="decoded_goals"):
+        policy_configs({"decoded_goals": 1.5})
+    with pytest.raises(ConfigError, match="no trained VAE there"):
+        policy_configs({"decoded_goals": 0.5, "encoder_weights": "/nonexistent/vae"})
+
+
 def test_noise_is_uniform_and_bounded():
     ds = DemoSet([_counting_demo()], dough_points=5, tool_points=2, goal_points=5, noise=0.005)
     rng = np.random.default_rng(1)

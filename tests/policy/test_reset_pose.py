@@ -279,7 +279,7 @@ class _FakeEncoder(Encoder):
 
 
 def test_decoded_goal_augmentation_replaces_whole_pieces(tmp_path):
-    from pasta.train.reset import _goal_draw, decoded_pieces
+    from pasta.train.decoded import decoded_pieces, goal_draw as _goal_draw
 
     rng = np.random.default_rng(0)
     bar = np.c_[np.linspace(0.4, 0.6, 200), np.full(200, 0.02), np.full(200, 0.5)].astype(np.float32)
@@ -314,7 +314,7 @@ def test_piece_share_input_carries_each_goal_pieces_share_of_the_points():
 
 
 def test_noisy_decodings_vary_the_shape_and_keep_the_point_count():
-    from pasta.train.reset import decoded_pieces
+    from pasta.train.decoded import decoded_pieces
 
     class _Shape(Encoder):
         """``z`` (1 value) stretches the piece along x: decoded length 0.1 * (1 + z)."""

@@ -296,3 +296,22 @@ def test_skills_have_no_policy_yet(skills):
     for s in skills.values():
         with pytest.raises(MissingComponentError, match=s.name):
             s.policy()
+
+
+def test_roll_sheet_demos_roll_the_board_cube_as_long_as_lift_spread_does():
+    """The `sheet` scene's expert targets the sheet LiftSpread rolls (the cube's volume over its side plus 1.5 cm,
+    pasta_tasks_board.roll_params); the default sampling's 0.13 wide sheet is a third shorter."""
+    from pasta.demos.generate import skill_config
+    from pasta_skill_roll.skill import RollSkill
+
+    rng = np.random.default_rng(3)
+    ratios: dict[str, list[float]] = {"sheet": [], "default": []}
+    for _ in range(40):
+        side = rng.uniform(0.055, 0.07)
+        cube = rng.uniform(0, side, (2000, 3)) + (0.25, 0.07, 0.45)
+        for scene in ratios:
+            p = RollSkill(skill_config("roll", scene)).sample_expert_params(cube, rng)
+            task_length = side ** 3 / (p["height"] * (side + 0.015))
+            ratios[scene].append(p["length"] / task_length)
+    assert 0.9 < np.median(ratios["sheet"]) < 1.1 and 0.75 < min(ratios["sheet"]) and max(ratios["sheet"]) < 1.3
+    assert np.median(ratios["default"]) < 0.8

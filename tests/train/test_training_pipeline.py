@@ -153,7 +153,7 @@ def test_demos_stage_adds_the_variant_units_the_skills_declare():
     assert {f"demos/{s}" for s in demo_skills()} <= {u.name for u in units}  # one per skill, plus variants
     builtin = [u.name for u in units if u.configs[0].skill in ("cut", "push", "roll")]
     assert builtin == ["demos/cut", "demos/cut-long", "demos/push", "demos/push-wide", "demos/push-nudge", "demos/roll",
-                       "demos/roll-board"]
+                       "demos/roll-board", "demos/roll-sheet"]
     long = {u.name: u for u in units}["demos/cut-long"]
     assert (long.configs[0].num, long.configs[0].scene) == (170, "long")  # 20 default + 150 for the reset pose
     assert (wide.configs[0].num, wide.configs[0].scene, wide.configs[0].skill) == (170, "wide", "push")
@@ -161,6 +161,8 @@ def test_demos_stage_adds_the_variant_units_the_skills_declare():
     assert (nudge.configs[0].num, nudge.configs[0].scene) == (320, "nudge")
     board = {u.name: u for u in units}["demos/roll-board"]
     assert (board.configs[0].num, board.configs[0].scene) == (120, "board")  # 20 default + 100 on the board
+    sheet = {u.name: u for u in units}["demos/roll-sheet"]  # the policy's board cubes rolled into LiftSpread's sheet
+    assert (sheet.configs[0].num, sheet.configs[0].scene) == (270, "sheet")
     wide = {u.name: u for u in plan(PipelineConfig(stages="demos", num_demos=20, variant_demos=5), {})}["demos/push-wide"]
     assert wide.configs[0].num == 25
     assert "demos/push-wide" not in [u.name for u in plan(PipelineConfig(stages="demos", variant_demos=0), {})]

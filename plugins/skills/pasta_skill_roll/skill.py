@@ -154,6 +154,13 @@ class RollSkill(Skill):
     #: these the roll's feasibility network only ever saw pieces resting on the floor
     demo_variants: ClassVar[Mapping[str, DemoVariant]] = {"board": DemoVariant(config={}, pipeline_demos=100,
                                           description="a dough cube (side 0.055-0.07) on the lift package's raised board"),
+                     # the board cube rolled into LiftSpread's sheet: the task rolls to the cube's volume over its side
+                     # plus 1.5 cm (pasta_tasks_board.roll_params), a width of 0.07-0.085, where the default
+                     # sampling's 0.13 leaves a short, thick piece; only the policy learns from these
+                     "sheet": DemoVariant(config={"width": 0.0775, "length_min_factor": 0.95, "length_max_factor": 1.2},
+                                          pipeline_demos=150, stages=("policy",),
+                                          description="the board cube rolled into a sheet 1.6-2 cm thin as long as "
+                                                      "its volume fills at the cube's width (LiftSpread's roll)"),
                      "pieces": DemoVariant(config={}, pipeline_demos=0,
                                            description="pieces as cutting and pushing leave them: 0.09-0.135 long, "
                                                        "0.07-0.15 deep, anywhere in z 0.2-0.8")}
@@ -211,8 +218,8 @@ class RollSkill(Skill):
     def demo_scene(self, rng: np.random.Generator, floor_y: float, variant: str = "default") -> list:
         """``default``: a small piece in the spreading area (x in 0.22-0.32) on the floor; ``board``: a cube
         resting on the board's top (:meth:`demo_tools`), where LiftSpread rolls; ``pieces``: a piece shaped as
-        cutting and pushing leave them (up to 0.15 deep), anywhere in z 0.2-0.8."""
-        if variant == "board":
+        cutting and pushing leave them (up to 0.15 deep), anywhere in z 0.2-0.8; ``sheet``: the ``board`` scene."""
+        if variant in ("board", "sheet"):
             top = standing_tool("board").stand_top
             side = float(rng.uniform(0.055, 0.07))
             return [((float(rng.uniform(0.25, 0.33)), top + side / 2, float(rng.uniform(0.42, 0.58))), (side,) * 3)]
@@ -224,8 +231,8 @@ class RollSkill(Skill):
 
     def demo_tools(self, variant: str = "default") -> dict[str, ToolPose]:
         """The registered ``board`` tool at its stand pose (``ToolSpec.stand``; the lift package registers
-        it) for the ``board`` variant; none otherwise."""
-        if variant != "board":
+        it) for the ``board`` and ``sheet`` variants; none otherwise."""
+        if variant not in ("board", "sheet"):
             return {}
         stand = standing_tool("board").stand
         assert stand is not None  # standing_tool() checks it
