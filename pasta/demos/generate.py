@@ -288,8 +288,8 @@ def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int,
     """For a skill that turns one piece into one (``n_in == n_out == 1``: its demo scene is that piece), the
     Chamfer distance (m^2) between the dough before and after a demonstration; raises :class:`InputError` when
     it is below the distance at which pasta takes a piece for its goal (the skill's ``at_goal``, else
-    ``perception.unchanged_threshold``): such a step would never be planned or run, so its demonstrations would
-    teach nothing. A skill that changes the number of pieces changes the scene whatever the distance (None)."""
+    ``perception.unchanged_threshold``) and the skill does not call the piece unfinished (:meth:`~pasta.core.Skill.unfinished`):
+    such a step would never be planned or run, so its demonstrations would teach nothing. A skill that changes the number of pieces changes the scene whatever the distance (None)."""
     if skill.n_in != 1 or skill.n_out != 1:
         return None
     from pasta.core.errors import InputError
@@ -299,7 +299,7 @@ def check_changed(skill: Any, before: np.ndarray, after: np.ndarray, index: int,
     limit = float(skill.at_goal if getattr(skill, "at_goal", None) is not None else UNCHANGED_THRESHOLD)
     rng = np.random.default_rng(index)  # its own stream: the demonstration's draws are unchanged
     moved = float(chamfer(sample_points(before, points, rng), sample_points(after, points, rng)))
-    if moved < limit:
+    if moved < limit and not skill.unfinished(before, after):
         source = "its at_goal" if getattr(skill, "at_goal", None) is not None else "perception.unchanged_threshold"
         raise InputError(f"skill '{skill.name}' demo {index}: its expert changed the dough by a Chamfer distance of "
                          f"{moved:.2e} m^2, below {limit:g} ({source}), the distance at which pasta takes a piece for "

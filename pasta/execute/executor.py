@@ -253,6 +253,8 @@ def execute_plan(
         watch = bool(getattr(controller, "watch", False))
         ended = monitor.should_run(obs.dough[idx], goal_points, keeps_count=len(subgoal) == len(attended),
                                    watch=watch, at_goal=getattr(skill, "at_goal", None)) if len(idx) else None
+        if ended is Stop.AT_GOAL and skill.unfinished(obs.dough[idx], goal_points):
+            ended = None  # close by the distance, but the skill's own measure says the step is still to do
         steps_run, attempts, res = 0, 0, None
         expected = int(labels.max()) + 1 - len(attended) + skill.spec.n_out  # pieces after a successful step
         tracked = obs.dough_index[idx]  # the attended particles, by identity

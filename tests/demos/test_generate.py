@@ -99,3 +99,25 @@ def test_scene_particles_split_by_volume_and_one_box_is_box_particles():
     assert pts.shape == (900, 3) and pts.dtype == np.float32
     assert np.bincount(owner).tolist() == [300, 600]
     assert np.all(np.abs(pts[owner == 1, 0] - 0.3) <= 0.1 + 1e-6)
+
+
+def test_a_demonstration_within_at_goal_is_kept_when_its_skill_calls_the_piece_unfinished():
+    """check_changed refuses a 1 -> 1 demonstration that moved its piece less than the skill's at_goal, unless the
+    skill's own measure says the piece was not at that goal (a roll of a cube into a sheet)."""
+    from pasta.core import InputError
+    from pasta.demos.generate import check_changed
+
+    class _Skill:
+        name, n_in, n_out, at_goal = "flatten", 1, 1, 1e-3
+
+        def __init__(self, unfinished):
+            self._unfinished = unfinished
+
+        def unfinished(self, piece, goal):
+            return self._unfinished
+
+    before = np.random.default_rng(0).uniform(0, 0.05, (600, 3))
+    after = before + (0.01, 0, 0)  # Chamfer ~2e-4
+    with pytest.raises(InputError, match="below 0.001 \\(its at_goal\\)"):
+        check_changed(_Skill(False), before, after, 0)
+    assert 0 < check_changed(_Skill(True), before, after, 0) < 1e-3

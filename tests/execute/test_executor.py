@@ -116,13 +116,18 @@ def test_the_monitor_skips_a_watched_step_whose_piece_is_at_its_goal_and_says_so
     cfg = SimConfig(n_grid=32, max_particles=1500, n_particles=1500, obs_points=300, seed=3)
     sim = Simulator(cfg, tools=get_plugins().simulated_tools())
     steps = {}
-    for controller, skill in (("learned", WatchedNudge()), ("heuristic", nudge)):
+    class UnfinishedNudge(WatchedNudge):
+        def unfinished(self, piece, goal):
+            return True  # its own measure says the piece still needs it
+
+    for controller, skill in (("learned", WatchedNudge()), ("heuristic", nudge), ("unfinished", UnfinishedNudge())):
         obs = sim.reset(crs_dough(cfg.n_particles, rng=4, floor_y=sim.floor_y, length=0.2))
         # the goal is the observed dough: the step's goal piece is where the piece already is
         with RunLogger(tmp_path / f"{controller}.mcap") as log:
             res = execute_plan(sim, one_step_plan(obs.dough.mean(0).tolist(), 0.03), skills={"nudge": skill},
                                encoder=box_encoder, goal=obs.dough, logger=log,
-                               cfg=ExecuteConfig(controller=controller, idle_steps=1, retries=0),
+                               cfg=ExecuteConfig(controller="heuristic" if controller == "heuristic" else "learned",
+                                                 idle_steps=1, retries=0),
                                perception=PerceptionConfig(num_points=64))
         steps[controller] = res.steps[0]
     assert steps["learned"].ended == "at_goal" and steps["learned"].env_steps == 0 and steps["learned"].attempts == 0
@@ -131,6 +136,8 @@ def test_the_monitor_skips_a_watched_step_whose_piece_is_at_its_goal_and_says_so
     assert any("nudge skipped: the piece already is at its goal" in m for m in lines), lines
     # a trusted (heuristic) controller is not watched: it runs to its own done
     assert steps["heuristic"].ended == "done" and steps["heuristic"].env_steps == 4
+    # a watched step at its goal by distance that its skill calls unfinished is started
+    assert steps["unfinished"].ended != "at_goal" and steps["unfinished"].env_steps > 0
 
 
 @pytest.mark.sim

@@ -200,6 +200,13 @@ def test_a_skill_says_how_close_is_at_its_goal():
     roll = skills.create("roll")
     assert roll.at_goal == 1e-3  # a learned roll of a rolled piece spreads it again
     assert skills.create("push").at_goal is None  # the others: perception.unchanged_threshold
+    # ...but a cube is not at the goal of the sheet it must become, however close by Chamfer
+    rng = np.random.default_rng(0)
+    cube = rng.uniform(0, 0.06, (800, 3)) + (0.27, 0.07, 0.47)
+    sheet = rng.uniform(0, 1, (800, 3)) * (0.17, 0.018, 0.075) + (0.215, 0.07, 0.4625)
+    rolled = sheet * (1, 1.1, 1) - (0, 0.007, 0)  # 10 % thicker: a roll would only spread it
+    assert roll.unfinished(cube, sheet) and not roll.unfinished(rolled, sheet) and not roll.unfinished(sheet, sheet)
+    assert not skills.create("push").unfinished(cube, sheet)  # the default: the distance decides
 
 
 def test_retries_a_step_that_hit_the_limit_or_left_too_few_pieces():
