@@ -103,8 +103,11 @@ class StepMonitor(ABC):
         monitor's)."""
 
     @abstractmethod
-    def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool) -> None:
-        """Start watching a step of at most ``limit`` env steps on ``piece (P, 3)`` towards ``goal``."""
+    def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool,
+              unfinished: bool = False) -> None:
+        """Start watching a step of at most ``limit`` env steps on ``piece (P, 3)`` towards ``goal``;
+        ``unfinished``: the skill's own measure says the piece is not at its goal however close it lies
+        (:meth:`pasta.core.Skill.unfinished`)."""
 
     @abstractmethod
     def should_stop(self, piece: np.ndarray, said: Stop | None, steps: int) -> Stop | None:

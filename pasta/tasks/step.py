@@ -101,7 +101,9 @@ class GoalMonitor(StepMonitor):
       below ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for
       ``patience`` env steps in a row: pushing cannot pull a piece back, so a push that overshoots only
       gets worse. A piece that started within ``near`` of its goal counts as having made progress from
-      the first step, so moving away from the goal ends the step at once;
+      the first step, so moving away from the goal ends the step at once, unless its skill calls it
+      unfinished (:meth:`~pasta.core.Skill.unfinished`: a cube lies that close to the sheet a roll makes of
+      it, and flattening it first moves it away);
     - when it says it is at its own step cap (:attr:`~pasta.core.Stop.CAP`), runs on for at most
       ``overrun`` more env steps while every one of them brings the piece closer than it has been: the
       caps were chosen on single-skill configs, and a cut that must carry its piece further than any
@@ -128,6 +130,7 @@ class GoalMonitor(StepMonitor):
         self._goal: np.ndarray | None = None
         self._watch = False
         self._limit = 0
+        self._near = self.near
 
     def _subset(self, cloud: np.ndarray) -> np.ndarray:
         cloud = np.asarray(cloud, np.float32)
@@ -147,8 +150,10 @@ class GoalMonitor(StepMonitor):
             return Stop.AT_GOAL
         return None
 
-    def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool) -> None:
+    def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool,
+              unfinished: bool = False) -> None:
         self._limit = int(limit)
+        self._near = 0.0 if unfinished else self.near
         self._watch = bool(watch) and goal is not None
         self._goal = self._subset(goal) if self._watch and goal is not None else None
         self.initial = self.best = self._measure(piece) if self._watch else 0.0
@@ -163,7 +168,7 @@ class GoalMonitor(StepMonitor):
         d = self._measure(piece)
         closer = d < self.best
         self.best = min(self.best, d)
-        progressed = self.best < self.progress * self.initial or self.initial < self.near
+        progressed = self.best < self.progress * self.initial or self.initial < self._near
         self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
         return self.above >= self.patience, closer
 
@@ -350,7 +355,11 @@ def run_skill(
     view = skill_observation(obs, tool, idx, goal_points)
     controller.reset(view)
     monitor = monitor if monitor is not None else GoalMonitor()
-    monitor.begin(view.piece, view.goal, limit=limit, watch=bool(getattr(controller, "watch", False)))
+    watch = bool(getattr(controller, "watch", False))
+    said_unfinished = getattr(skill, "unfinished", None)  # Skill's hook; a bare test double may lack it
+    unfinished = (watch and callable(said_unfinished) and view.goal is not None and len(view.goal) > 0
+                  and bool(said_unfinished(view.piece, view.goal)))
+    monitor.begin(view.piece, view.goal, limit=limit, watch=watch, unfinished=unfinished)
     steps = 0
     ended: Stop | None = Stop.LIMIT if limit <= 0 else None
     path = [np.asarray(obs.tool_poses[tool][:3], np.float32)]

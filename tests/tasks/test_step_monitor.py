@@ -124,6 +124,20 @@ def test_progress_sets_how_close_a_step_must_come_before_it_is_watched():
     assert _measure(closer, goal, path) == [None, None, None, None, Stop.REGRESSED]
 
 
+def test_a_piece_near_its_goal_that_its_skill_calls_unfinished_may_first_move_away():
+    """Within ``near`` of the goal a step counts as having made progress from the start, so moving away ends it;
+    a piece its skill calls unfinished (a cube to be rolled into a sheet) gets the ordinary watch instead."""
+    goal = np.zeros((10, 3), np.float32)
+    path = [0.03, 0.03, 0.03, 0.01, 0.005]  # starts at Chamfer 2 * 0.02^2 = 8e-4, first moves away, then closes in
+    results = {}
+    for unfinished in (False, True):
+        m = GoalMonitor(patience=3, near=0.001)
+        m.begin(goal + np.float32([0.02, 0, 0]), goal, limit=100, watch=True, unfinished=unfinished)
+        results[unfinished] = _measure(m, goal, path)
+    assert results[False][2] is Stop.REGRESSED
+    assert results[True] == [None] * 5
+
+
 class _CappedLeft(Controller):
     """Pushes left at full speed and says it is at its cap after ``cap`` actions, as a learned policy does at
     its ``max_steps``."""
