@@ -20,6 +20,8 @@ controller that only knows "done" stays a two-line function.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 from abc import ABC, abstractmethod
 from enum import StrEnum
 from typing import TYPE_CHECKING, Any
@@ -104,10 +106,10 @@ class StepMonitor(ABC):
 
     @abstractmethod
     def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool,
-              unfinished: bool = False) -> None:
+              unfinished: Callable[[np.ndarray], bool] | None = None) -> None:
         """Start watching a step of at most ``limit`` env steps on ``piece (P, 3)`` towards ``goal``;
-        ``unfinished``: the skill's own measure says the piece is not at its goal however close it lies
-        (:meth:`pasta.core.Skill.unfinished`)."""
+        ``unfinished(piece)``: the skill's own measure of whether a piece still needs the step, however close
+        it lies to the goal (:meth:`pasta.core.Skill.unfinished` with this goal; ``None``: the distance decides)."""
 
     @abstractmethod
     def should_stop(self, piece: np.ndarray, said: Stop | None, steps: int) -> Stop | None:

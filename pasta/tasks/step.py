@@ -11,6 +11,7 @@ sees the current positions of exactly those points.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -101,9 +102,9 @@ class GoalMonitor(StepMonitor):
       below ``progress`` times the starting one) and ``d`` has stayed above ``best * (1 + rise)`` for
       ``patience`` env steps in a row: pushing cannot pull a piece back, so a push that overshoots only
       gets worse. A piece that started within ``near`` of its goal counts as having made progress from
-      the first step, so moving away from the goal ends the step at once, unless its skill calls it
-      unfinished (:meth:`~pasta.core.Skill.unfinished`: a cube lies that close to the sheet a roll makes of
-      it, and flattening it first moves it away);
+      the first step, so moving away from the goal ends the step at once. Neither applies while the skill
+      calls the piece unfinished (:meth:`~pasta.core.Skill.unfinished`): a roll's passes leave the dough
+      lopsided until the next pass evens it, and a cube lies within ``near`` of the sheet it must become;
     - when it says it is at its own step cap (:attr:`~pasta.core.Stop.CAP`), runs on for at most
       ``overrun`` more env steps while every one of them brings the piece closer than it has been: the
       caps were chosen on single-skill configs, and a cut that must carry its piece further than any
@@ -131,6 +132,7 @@ class GoalMonitor(StepMonitor):
         self._watch = False
         self._limit = 0
         self._near = self.near
+        self._unfinished: Callable[[np.ndarray], bool] | None = None
 
     def _subset(self, cloud: np.ndarray) -> np.ndarray:
         cloud = np.asarray(cloud, np.float32)
@@ -151,9 +153,10 @@ class GoalMonitor(StepMonitor):
         return None
 
     def begin(self, piece: np.ndarray, goal: np.ndarray | None, *, limit: int, watch: bool,
-              unfinished: bool = False) -> None:
+              unfinished: Callable[[np.ndarray], bool] | None = None) -> None:
         self._limit = int(limit)
-        self._near = 0.0 if unfinished else self.near
+        self._unfinished = unfinished if watch else None
+        self._near = 0.0 if self._unfinished is not None and self._unfinished(piece) else self.near
         self._watch = bool(watch) and goal is not None
         self._goal = self._subset(goal) if self._watch and goal is not None else None
         self.initial = self.best = self._measure(piece) if self._watch else 0.0
@@ -170,7 +173,8 @@ class GoalMonitor(StepMonitor):
         self.best = min(self.best, d)
         progressed = self.best < self.progress * self.initial or self.initial < self._near
         self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
-        return self.above >= self.patience, closer
+        regressed = self.above >= self.patience and not (self._unfinished is not None and self._unfinished(piece))
+        return regressed, closer
 
     def should_stop(self, piece: np.ndarray, said: Stop | None, steps: int) -> Stop | None:
         if not self._watch:
@@ -357,8 +361,11 @@ def run_skill(
     monitor = monitor if monitor is not None else GoalMonitor()
     watch = bool(getattr(controller, "watch", False))
     said_unfinished = getattr(skill, "unfinished", None)  # Skill's hook; a bare test double may lack it
-    unfinished = (watch and callable(said_unfinished) and view.goal is not None and len(view.goal) > 0
-                  and bool(said_unfinished(view.piece, view.goal)))
+    goal_now = view.goal
+    unfinished = None
+    if callable(said_unfinished) and goal_now is not None and len(goal_now) > 0:
+        def unfinished(piece: np.ndarray) -> bool:
+            return bool(said_unfinished(piece, goal_now))
     monitor.begin(view.piece, view.goal, limit=limit, watch=watch, unfinished=unfinished)
     steps = 0
     ended: Stop | None = Stop.LIMIT if limit <= 0 else None
