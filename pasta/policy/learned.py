@@ -113,10 +113,12 @@ class LearnedPolicy:
 
     @torch.no_grad()
     def predict(self, dough: np.ndarray, tool: np.ndarray, goal: np.ndarray,
-                step: np.ndarray | None = None, pose: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                step: np.ndarray | None = None, pose: np.ndarray | None = None,
+                prev_action: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Batched inference: ``dough (B, P, 3)``, ``tool (B, T, 3)``, ``goal (B, G, 3)`` (already at the
         network's point counts) and, for a network with ``step_feature``, ``step (B,)`` (actions taken so
-        far; default 0) and, with ``pose_feature``, ``pose (B, 7)`` (the tool pose; required) ->
+        far; default 0), with ``pose_feature``, ``pose (B, 7)`` (the tool pose; required) and, with
+        ``action_feature``, ``prev_action (B, A)`` (the previous action; default zeros) ->
         ``action (B, A)``, ``done probability (B,)``."""
         dev = next(self.net.parameters()).device
         clouds = [torch.as_tensor(np.asarray(x, np.float32), device=dev) for x in (dough, tool, goal)]
@@ -129,7 +131,12 @@ class LearnedPolicy:
             if pose is None:
                 raise InputError("this policy takes the tool pose: pass pose (B, 7)")
             p = torch.as_tensor(np.asarray(pose, np.float32).reshape(-1, 7), device=dev)
-        a, logit = self.net(*clouds, t, p)
+        prev = None
+        if self.net.cfg.action_feature:
+            shape = (len(dough), self.net.cfg.action_dim)
+            prev = torch.as_tensor(np.zeros(shape, np.float32) if prev_action is None
+                                   else np.asarray(prev_action, np.float32).reshape(shape), device=dev)
+        a, logit = self.net(*clouds, t, p, prev)
         return a.cpu().numpy(), torch.sigmoid(logit).cpu().numpy()
 
 
@@ -146,6 +153,7 @@ class PolicyController(Controller):
         self.steps = 0
         self.first_step = 0
         self.last_done_prob = 0.0
+        self.prev_action = np.zeros(policy.config.action_dim, np.float32)
 
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None, scene: np.ndarray | None = None) -> Any:
         """The policy's learned start pose (:meth:`LearnedPolicy.approach_pose`) or ``None`` (then the
@@ -161,6 +169,7 @@ class PolicyController(Controller):
     def reset(self, obs: SkillObservation) -> None:
         self.rng = np.random.default_rng(self.policy.seed)
         self.steps = self.first_step
+        self.prev_action = np.zeros(self.policy.config.action_dim, np.float32)
 
     def _pick(self, cloud: np.ndarray | None, n: int, what: str) -> np.ndarray:
         cloud = np.asarray(cloud, np.float32)
@@ -174,7 +183,9 @@ class PolicyController(Controller):
         tool = self._pick(obs.tool_points, cfg.tool_points, "tool_points")
         goal = self._pick(obs.goal, cfg.goal_points, "goal")
         action, prob = self.policy.predict(dough[None], tool[None], goal[None], np.array([self.steps]),
-                                            np.asarray(obs.tool_pose, np.float32).reshape(1, -1)[:, :7])
+                                            np.asarray(obs.tool_pose, np.float32).reshape(1, -1)[:, :7],
+                                            self.prev_action[None])
+        self.prev_action = action[0].astype(np.float32)
         self.steps += 1
         taken = self.steps - self.first_step
         self.last_done_prob = float(prob[0])

@@ -25,6 +25,9 @@ them; ``goal_feature`` for the skills whose goal lies elsewhere, push and lift):
   ``encoder.pos_scale``, computed from the two clouds (no extra input). Where the piece must go, exact:
   the lift policy trained without it carried every piece along the demonstrations' mean direction (-x)
   whatever the goal, and never stopped (docs/policies.md, "lift and gather").
+- ``action_feature``: the policy's previous action ``(A,)`` (zeros at the first step). Which way a roller
+  is going is not in the frame: halfway along the piece the expert rolls forward on one pass and back on
+  the next, from the same dough, pose and (nearly) step; the last action says which pass it is.
 
 Output: ``action (B, A)`` in ``[-1, 1]`` (tanh) and ``done (B,)`` logits.
 """
@@ -57,6 +60,7 @@ class PolicyConfig:
         step_scale: divisor of the step index.
         pose_feature: feed the tool pose ``(7,)`` to the heads (on: every shipped policy).
         goal_feature: feed the goal centroid's offset from the dough centroid ``(3,)`` to the heads.
+        action_feature: feed the previous action ``(action_dim,)`` to the heads (zeros at the first step).
         aux_widths: widths of the MLP that embeds the step / pose / goal inputs.
     """
 
@@ -71,12 +75,14 @@ class PolicyConfig:
     step_scale: float = 50.0
     pose_feature: bool = True
     goal_feature: bool = False
+    action_feature: bool = False
     aux_widths: tuple[int, ...] = (64, 64)
 
     @property
     def aux_dim(self) -> int:
         """Size of the raw low-dimensional input (0: none)."""
-        return (1 if self.step_feature else 0) + (7 if self.pose_feature else 0) + (3 if self.goal_feature else 0)
+        return ((1 if self.step_feature else 0) + (7 if self.pose_feature else 0) + (3 if self.goal_feature else 0)
+                + (self.action_dim if self.action_feature else 0))
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -89,10 +95,13 @@ class PolicyConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PolicyConfig:
-        """The config :meth:`to_dict` wrote; every key must be there (no defaults for missing ones).
+        """The config :meth:`to_dict` wrote; every key must be there (no defaults for missing ones) except
+        ``action_feature`` (off when absent).
 
         Raises:
             ConfigError: a key is missing or unknown."""
+        # checkpoints written before the previous-action input (2026-12-06) lack its switch: it was off
+        d = {"action_feature": False, **d}
         _check_keys("policy network", d, cls.__dataclass_fields__)
         enc = dict(d["encoder"])
         _check_keys("policy network encoder", enc, ("in_features", "pos_scale", "global_widths", "levels"))
@@ -104,7 +113,7 @@ class PolicyConfig:
                    goal_points=int(d["goal_points"]), center_xz=bool(d["center_xz"]), encoder=encoder,
                    head_widths=tuple(int(w) for w in d["head_widths"]), step_feature=bool(d["step_feature"]),
                    step_scale=float(d["step_scale"]), pose_feature=bool(d["pose_feature"]),
-                   goal_feature=bool(d["goal_feature"]), aux_widths=tuple(int(w) for w in d["aux_widths"]))
+                   goal_feature=bool(d["goal_feature"]), action_feature=bool(d["action_feature"]), aux_widths=tuple(int(w) for w in d["aux_widths"]))
 
 
 def _check_keys(what: str, d: dict[str, Any], keys: Any) -> None:
@@ -128,9 +137,9 @@ def _head(sizes: list[int]) -> nn.Sequential:
 
 
 class PolicyNet(nn.Module):
-    """``(dough (B, P, 3), tool (B, T, 3), goal (B, G, 3)[, step (B,), pose (B, 7)])`` -> ``(action (B, A)
-    in [-1, 1], done logit (B,))``; ``step`` / ``pose`` are required when ``cfg.step_feature`` /
-    ``cfg.pose_feature`` is on, ignored otherwise."""
+    """``(dough (B, P, 3), tool (B, T, 3), goal (B, G, 3)[, step (B,), pose (B, 7), prev_action (B, A)])`` ->
+    ``(action (B, A) in [-1, 1], done logit (B,))``; ``step`` / ``pose`` / ``prev_action`` are required when
+    ``cfg.step_feature`` / ``cfg.pose_feature`` / ``cfg.action_feature`` is on, ignored otherwise."""
 
     def __init__(self, cfg: PolicyConfig | None = None) -> None:
         super().__init__()
@@ -155,7 +164,8 @@ class PolicyNet(nn.Module):
             nn.init.zeros_(last.bias)
 
     def forward(self, dough: torch.Tensor, tool: torch.Tensor, goal: torch.Tensor,
-                step: torch.Tensor | None = None, pose: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+                step: torch.Tensor | None = None, pose: torch.Tensor | None = None,
+                prev_action: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         xyz = torch.cat([dough, tool, goal], 1)
         shift = dough.mean(1, keepdim=True) * xyz.new_tensor([1.0, 0.0, 1.0]) if self.cfg.center_xz else None
         if shift is not None:
@@ -166,11 +176,12 @@ class PolicyNet(nn.Module):
         h = self.encoder(xyz, onehot)
         if self.cfg.aux_dim:
             offset = goal.mean(1) - dough.mean(1) if self.cfg.goal_feature else None
-            h = torch.cat([h, self.aux(self._aux_input(h, step, pose, shift, offset))], -1)
+            h = torch.cat([h, self.aux(self._aux_input(h, step, pose, shift, offset, prev_action))], -1)
         return torch.tanh(self.action_head(h)), self.done_head(h).squeeze(-1)
 
     def _aux_input(self, h: torch.Tensor, step: torch.Tensor | None, pose: torch.Tensor | None,
-                   shift: torch.Tensor | None, offset: torch.Tensor | None = None) -> torch.Tensor:
+                   shift: torch.Tensor | None, offset: torch.Tensor | None = None,
+                   prev_action: torch.Tensor | None = None) -> torch.Tensor:
         parts = []
         if self.cfg.step_feature:
             if step is None:
@@ -184,4 +195,9 @@ class PolicyNet(nn.Module):
             parts += [pos * self.cfg.encoder.pos_scale, pose[:, 3:]]
         if offset is not None:  # (B, 3): goal centroid - dough centroid, unchanged by the centring shift
             parts.append(offset.to(h.dtype) * self.cfg.encoder.pos_scale)
+        if self.cfg.action_feature:
+            a = self.cfg.action_dim
+            if prev_action is None:
+                raise ValueError(f"this policy network takes its previous action (action_feature): pass prev_action (B, {a})")
+            parts.append(prev_action.to(h.dtype).reshape(-1, a).expand(h.shape[0], a))
         return torch.cat(parts, -1)

@@ -50,6 +50,8 @@ class PolicyTrainConfig:
         pose_feature: the network also sees the tool pose (:attr:`PolicyConfig.pose_feature`, its default).
         goal_feature: the network also sees the goal centroid's offset from the dough centroid
             (:attr:`PolicyConfig.goal_feature`; push and lift turn it on in their ``training_defaults``).
+        action_feature: the network also sees its previous action (:attr:`PolicyConfig.action_feature`;
+            the roll turns it on: which way the roller goes is not in one frame).
         start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
             first step with a vertical action, :func:`pasta.train.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
@@ -77,6 +79,7 @@ class PolicyTrainConfig:
     step_feature: bool = PolicyConfig.step_feature
     pose_feature: bool = PolicyConfig.pose_feature
     goal_feature: bool = PolicyConfig.goal_feature
+    action_feature: bool = PolicyConfig.action_feature
     start_at_reset: bool = False
     decoded_goals: float = 0.0
     decoded_noise: float = 0.0
@@ -96,7 +99,7 @@ class PolicyTrainConfig:
 
 def _to_torch(b: Batch) -> dict[str, torch.Tensor]:
     out = {k: torch.from_numpy(getattr(b, k)) for k in ("dough", "tool", "goal", "action", "done")}
-    for k in ("step", "pose"):
+    for k in ("step", "pose", "prev_action"):
         if getattr(b, k) is not None:
             out[k] = torch.from_numpy(getattr(b, k))
     return out
@@ -124,6 +127,7 @@ class PolicyTask:
         net_cfg.dough_points, net_cfg.tool_points, net_cfg.goal_points = cfg.dough_points, cfg.tool_points, cfg.goal_points
         # the inputs are training settings (key=value on `pasta train policy`); network= gives the sizes
         net_cfg.step_feature, net_cfg.pose_feature, net_cfg.goal_feature = cfg.step_feature, cfg.pose_feature, cfg.goal_feature
+        net_cfg.action_feature = cfg.action_feature
         torch.manual_seed(seed)
         self.model = PolicyNet(net_cfg)
         rng = np.random.default_rng(seed + 7919)
@@ -138,7 +142,7 @@ class PolicyTask:
             yield _to_torch(self.train_set.sample(rng.integers(0, len(self.train_set), batch_size), rng))
 
     def _losses(self, b: dict[str, torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        action, logit = self.model(b["dough"], b["tool"], b["goal"], b.get("step"), b.get("pose"))
+        action, logit = self.model(b["dough"], b["tool"], b["goal"], b.get("step"), b.get("pose"), b.get("prev_action"))
         a_loss = (action - b["action"].clamp(-1, 1)).pow(2).sum(-1).mean()
         d_loss = torch.nn.functional.binary_cross_entropy_with_logits(
             logit, b["done"], pos_weight=logit.new_tensor(self.cfg.done_pos_weight))

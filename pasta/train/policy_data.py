@@ -35,7 +35,8 @@ __all__ = ["Batch", "DemoSet"]
 class Batch:
     """One training batch (numpy float32): ``dough (B, P, 3)``, ``tool (B, T, 3)``, ``goal (B, G, 3)``,
     ``action (B, A)``, ``done (B,)`` in {0, 1}, ``step (B,)`` the step index ``t`` of each sample within its
-    demonstration (actions taken before it), ``pose (B, 7)`` the tool pose at that step."""
+    demonstration (actions taken before it), ``pose (B, 7)`` the tool pose at that step, ``prev_action (B, A)``
+    the action before it (zeros at ``t = 0``)."""
 
     dough: np.ndarray
     tool: np.ndarray
@@ -44,6 +45,7 @@ class Batch:
     done: np.ndarray
     step: np.ndarray | None = None
     pose: np.ndarray | None = None
+    prev_action: np.ndarray | None = None
 
 
 def _subsample(cloud: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
@@ -97,7 +99,8 @@ class DemoSet:
     def sample(self, rows: np.ndarray, rng: np.random.Generator) -> Batch:
         """The batch of transitions ``rows`` (indices into ``self.index``), goals and noise drawn from ``rng``."""
         p, tp, gp = self.sizes
-        out: dict[str, list[Any]] = {k: [] for k in ("dough", "tool", "goal", "action", "done", "step", "pose")}
+        out: dict[str, list[Any]] = {k: [] for k in ("dough", "tool", "goal", "action", "done", "step", "pose",
+                                                     "prev_action")}
         for r in rows:
             di, t = self.index[r]
             demo = self.demos[di]
@@ -116,6 +119,7 @@ class DemoSet:
             out["done"].append(float(t == tg))
             out["step"].append(float(t))
             out["pose"].append(demo.tool_pose[t])
+            out["prev_action"].append(demo.action[t - 1] if t > 0 else np.zeros_like(demo.action[t]))
         b = {k: np.asarray(np.stack(v), np.float32) for k, v in out.items()}
         if self.noise > 0:
             for k in ("dough", "tool", "goal"):

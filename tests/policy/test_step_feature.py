@@ -200,3 +200,61 @@ def test_step_and_pose_inputs_are_the_defaults_every_skill_trains_with():
         assert not {"step_feature", "pose_feature"} & set(asked), name
     units = plan(PipelineConfig(stages="policy"), {})
     assert units and all(u.configs[1].step_feature and u.configs[1].pose_feature for u in units)
+
+
+def _alternating_demo(path, steps=12, points=40, seed=0):
+    """Every frame is the same and the actions alternate (+0.8, -0.4, +0.8, ...); without the step input,
+    only the previous action tells the next."""
+    rng = np.random.default_rng(seed)
+    blob = (np.array([0.5, 0.05, 0.5]) + rng.normal(0, 0.02, (points, 3))).astype(np.float32)
+    tool = (np.array([0.5, 0.12, 0.5]) + rng.normal(0, 0.01, (10, 3))).astype(np.float32)
+    action = np.where(np.arange(steps)[:, None] % 2 == 0, 0.8, -0.4).astype(np.float32) * np.ones((1, 2), np.float32)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, dough=np.repeat(blob[None], steps + 1, 0), tool_points=np.repeat(tool[None], steps + 1, 0),
+             tool_pose=np.zeros((steps + 1, 7), np.float32), action=action, skill=np.array("push"),
+             params=np.array(json.dumps({"seed": seed})))
+    return blob, tool, action
+
+
+def test_batches_carry_the_previous_action():
+    steps = 5
+    action = np.arange(1, steps + 1, dtype=np.float32)[:, None].repeat(2, 1)
+    dough = np.repeat(np.arange(steps + 1, dtype=np.float32)[:, None, None], 10, 1).repeat(3, 2)
+    demo = Demo("push", 0, dough, np.zeros((steps + 1, 4, 3), np.float32), np.zeros((steps + 1, 7), np.float32), action)
+    ds = DemoSet([demo], dough_points=5, tool_points=2, goal_points=5, noise=0.0)
+    rng = np.random.default_rng(0)
+    b = ds.sample(rng.integers(0, len(ds), 50), rng)
+    np.testing.assert_array_equal(b.prev_action[:, 0], b.step)  # action[t - 1] = t, zeros at t = 0
+    np.testing.assert_array_equal(b.action[:, 0], b.step + 1)
+
+
+def test_previous_action_learns_what_one_frame_and_no_step_cannot_tell(tmp_path):
+    """Identical frames, actions alternating: with the previous action as input the policy fits the sequence,
+    and its controller feeds back what it did (zeros first); an older checkpoint config without the switch loads
+    with it off."""
+    from pasta.train.loop import LoopConfig
+
+    (tmp_path / "manifest.json").write_text(json.dumps({"skills": ["push"]}))
+    blob, tool, action = _alternating_demo(tmp_path / "push" / "demo_00000.npz")
+    cfg = PolicyTrainConfig(hindsight_ratio=0.0, noise=0.0, val_fraction=0.0, steps_per_epoch=25, val_batches=1,
+                            dough_points=32, tool_points=8, goal_points=32, step_feature=False, pose_feature=False,
+                            action_feature=True)
+    loop = LoopConfig(epochs=12, batch_size=16, lr=3e-3, seed=0, progress=False)
+    train_policy("push", tmp_path, tmp_path / "out", cfg=cfg, loop=loop, network=PolicyConfig(**TINY))
+    loaded = LearnedPolicy.load(tmp_path / "out", "push")
+    assert loaded.config.action_feature and loaded.config.aux_dim == 2
+
+    class _Push:
+        name = "push"
+
+    ctl = loaded.controller(_Push())
+    obs = SkillObservation(piece=blob, goal=blob, tool_points=tool, tool_pose=np.zeros(7, np.float32))
+    ctl.reset(obs)
+    acts = np.stack([ctl.act(obs)[0] for _ in range(len(action))])
+    err = np.abs(acts - action)
+    assert err.max() < 0.3  # a one-frame policy outputs one action for all steps: error 0.6 on half of them
+    with pytest.raises(ValueError, match="previous action"):
+        loaded.net(*(torch.as_tensor(x[None]) for x in (blob, tool, blob)))
+    old = loaded.config.to_dict()
+    old.pop("action_feature")
+    assert PolicyConfig.from_dict(old).action_feature is False
