@@ -9,7 +9,9 @@ Input: three clouds of one skill execution step,
 concatenated to one cloud of ``P + T + G`` points, each with a one-hot source feature
 (dough ``[1, 0, 0]``, tool ``[0, 1, 0]``, goal ``[0, 0, 1]``). With ``center_xz`` the clouds are
 shifted so that the dough centroid lies at ``x = z = 0`` (``y``, the height above the floor, is
-kept): actions are relative tool motions, so the policy need not learn every placement.
+kept): actions are relative tool motions, so the policy need not learn every placement. With ``floor_y``
+also ``y`` is measured from the dough's bottom (its 2nd percentile): a roll on the raised board and one
+on the table are the same motion, so the roll policy does not learn two height scales.
 
 Low-dimensional inputs, embedded by a small MLP (``aux_widths``) and concatenated to the global point
 feature before the heads (``step_feature`` and ``pose_feature`` on by default: every skill's policy uses
@@ -54,6 +56,7 @@ class PolicyConfig:
         action_dim: ``A``, the skill's tool action size.
         dough_points, tool_points, goal_points: points per source fed to the network.
         center_xz: shift every cloud so that the dough centroid is at ``x = z = 0``.
+        floor_y: shift every cloud so that the dough's bottom (2nd percentile of ``y``) is at ``y = 0``.
         encoder: the PointNet++ sizes.
         head_widths: hidden widths of the action and done heads.
         step_feature: feed the execution step ``t / step_scale`` to the heads (on: every shipped policy).
@@ -69,6 +72,7 @@ class PolicyConfig:
     tool_points: int = 100
     goal_points: int = 512
     center_xz: bool = True
+    floor_y: bool = False
     encoder: PointNet2Config = field(default_factory=PointNet2Config)
     head_widths: tuple[int, ...] = (256, 128)
     step_feature: bool = True
@@ -96,12 +100,12 @@ class PolicyConfig:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PolicyConfig:
         """The config :meth:`to_dict` wrote; every key must be there (no defaults for missing ones) except
-        ``action_feature`` (off when absent).
+        ``action_feature`` and ``floor_y`` (off when absent).
 
         Raises:
             ConfigError: a key is missing or unknown."""
         # checkpoints written before the previous-action input (2026-12-06) lack its switch: it was off
-        d = {"action_feature": False, **d}
+        d = {"action_feature": False, "floor_y": False, **d}
         _check_keys("policy network", d, cls.__dataclass_fields__)
         enc = dict(d["encoder"])
         _check_keys("policy network encoder", enc, ("in_features", "pos_scale", "global_widths", "levels"))
@@ -110,7 +114,8 @@ class PolicyConfig:
         encoder = PointNet2Config(in_features=int(enc["in_features"]), pos_scale=float(enc["pos_scale"]),
                                   global_widths=tuple(int(w) for w in enc["global_widths"]), levels=levels)
         return cls(action_dim=int(d["action_dim"]), dough_points=int(d["dough_points"]), tool_points=int(d["tool_points"]),
-                   goal_points=int(d["goal_points"]), center_xz=bool(d["center_xz"]), encoder=encoder,
+                   goal_points=int(d["goal_points"]), center_xz=bool(d["center_xz"]), floor_y=bool(d["floor_y"]),
+                   encoder=encoder,
                    head_widths=tuple(int(w) for w in d["head_widths"]), step_feature=bool(d["step_feature"]),
                    step_scale=float(d["step_scale"]), pose_feature=bool(d["pose_feature"]),
                    goal_feature=bool(d["goal_feature"]), action_feature=bool(d["action_feature"]), aux_widths=tuple(int(w) for w in d["aux_widths"]))
@@ -168,6 +173,9 @@ class PolicyNet(nn.Module):
                 prev_action: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         xyz = torch.cat([dough, tool, goal], 1)
         shift = dough.mean(1, keepdim=True) * xyz.new_tensor([1.0, 0.0, 1.0]) if self.cfg.center_xz else None
+        if self.cfg.floor_y:
+            bottom = torch.quantile(dough[..., 1], 0.02, dim=1).reshape(-1, 1, 1) * xyz.new_tensor([0.0, 1.0, 0.0])
+            shift = bottom if shift is None else shift + bottom
         if shift is not None:
             xyz = xyz - shift
         sizes = (dough.shape[1], tool.shape[1], goal.shape[1])

@@ -52,6 +52,8 @@ class PolicyTrainConfig:
             (:attr:`PolicyConfig.goal_feature`; push and lift turn it on in their ``training_defaults``).
         action_feature: the network also sees its previous action (:attr:`PolicyConfig.action_feature`;
             the roll turns it on: which way the roller goes is not in one frame).
+        floor_y: heights measured from the dough's bottom (:attr:`PolicyConfig.floor_y`; the roll: the board
+            and the table are the same motion).
         start_at_reset: drop each demonstration's steps before its reset pose (the align phase, up to the
             first step with a vertical action, :func:`pasta.train.reset.align_offset`), so the step
             counter starts at 0 where a policy with a learned reset pose starts (``start_step`` 0) and
@@ -80,6 +82,7 @@ class PolicyTrainConfig:
     pose_feature: bool = PolicyConfig.pose_feature
     goal_feature: bool = PolicyConfig.goal_feature
     action_feature: bool = PolicyConfig.action_feature
+    floor_y: bool = PolicyConfig.floor_y
     start_at_reset: bool = False
     decoded_goals: float = 0.0
     decoded_noise: float = 0.0
@@ -127,7 +130,7 @@ class PolicyTask:
         net_cfg.dough_points, net_cfg.tool_points, net_cfg.goal_points = cfg.dough_points, cfg.tool_points, cfg.goal_points
         # the inputs are training settings (key=value on `pasta train policy`); network= gives the sizes
         net_cfg.step_feature, net_cfg.pose_feature, net_cfg.goal_feature = cfg.step_feature, cfg.pose_feature, cfg.goal_feature
-        net_cfg.action_feature = cfg.action_feature
+        net_cfg.action_feature, net_cfg.floor_y = cfg.action_feature, cfg.floor_y
         torch.manual_seed(seed)
         self.model = PolicyNet(net_cfg)
         rng = np.random.default_rng(seed + 7919)

@@ -169,6 +169,9 @@ class RollSkill(Skill):
                                                        "0.07-0.15 deep, anywhere in z 0.2-0.8")}
     training_defaults: ClassVar[Mapping[str, Mapping[str, Any]]] = {
         "feasibility": {"stride": 4, "epochs": 20, "shift_per_positive": 5},
+        # which way the roller goes is not in one frame (the previous action says it); heights from the dough's
+        # bottom, so a roll on the board and one on the table are one motion (docs/policies.md)
+        "policy": {"action_feature": True, "floor_y": True},
         "select": {"thresholds": "0.3,0.4,0.5,0.6,0.7,0.8", "min_steps": "1,20", "max_steps": "0,60"},
     }
 
