@@ -52,13 +52,16 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
   demos/push-wide        pasta demos skill=push num=<num_demos + 150> scene=wide ...
   demos/push-nudge       pasta demos skill=push num=<num_demos + 300> scene=nudge ... (read by policy/push only)
   demos/cut-long         pasta demos skill=cut num=<num_demos + 150> scene=long ... (read by reset/cut only)
+  demos/roll-board       pasta demos skill=roll num=<num_demos + 100> scene=board ...
+  demos/roll-sheet       pasta demos skill=roll num=<num_demos + 250> scene=sheet ... (read by policy/roll only)
   vae                    epochs=11 stride=5 threads=1                       -> OUT/vae
   feasibility/<skill>    threads=1; cut stride=3 (epochs 30) shift_per_positive=5 shift_entities=one
                          shift_max=0.25; push and roll stride=4 epochs=20   -> OUT/feasibility/<skill>
   cost                   stride=5 threads=1 (epochs 60)                     -> OUT/cost
   policy/<skill>         epochs=40 steps_per_epoch=50 threads=1             -> OUT/policy/<skill>
                          (step_feature and pose_feature on: the defaults); cut: start_at_reset=true;
-                         push and lift: goal_feature=true
+                         push and lift: goal_feature=true; lift: decoded_goals=0.5 decoded_noise=0.5
+                         decoded_shift=0.03; roll: action_feature=true floor_y=true
   reset/cut              pasta train reset threads=1 (epochs 90, start_step 0, points 1000) target=skill
                          piece_share=true x_share=true decoded_goals=0.5 decoded_noise=0.5
                                                                 -> OUT/policy/cut/reset.* (+ reset_metrics.json)

@@ -129,3 +129,18 @@ def test_controller_checks_skill_and_returns_action(demo_dir):
     a2, d2 = ctl.act(obs)
     assert a1.shape == (2,) and a1.dtype == np.float32 and np.abs(a1).max() <= 1
     assert not d1 and d2  # threshold 0: done as soon as min_steps allows
+
+
+def test_make_task_decodes_the_final_goals_with_the_shipped_vae(demo_dir):
+    from pasta.train.policy import make_task
+
+    cfg = PolicyTrainConfig(hindsight_ratio=0.0, noise=0.0, val_fraction=0.0, val_batches=1, dough_points=32,
+                            tool_points=8, goal_points=32, max_demos=1, decoded_goals=1.0, decoded_noise=0.5)
+    task = make_task("push", demo_dir, cfg, network=TINY, batch_size=4)
+    (pieces,) = task.train_set.decoded
+    exact, recs = pieces[0]
+    final = task.train_set.demos[0].dough[-1]
+    assert recs.shape == (4, len(exact), 3) and len(exact) <= len(final)  # four noisy decodings of the piece
+    assert not np.allclose(recs[0], exact)
+    b = task.train_set.sample(np.zeros(8, int), np.random.default_rng(0))
+    assert not any(np.isin(g, final).all() for g in b.goal)  # every final goal is a decoding

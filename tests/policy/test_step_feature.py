@@ -258,3 +258,24 @@ def test_previous_action_learns_what_one_frame_and_no_step_cannot_tell(tmp_path)
     old = loaded.config.to_dict()
     old.pop("action_feature")
     assert PolicyConfig.from_dict(old).action_feature is False
+
+
+def test_floor_y_measures_heights_from_the_dough_bottom():
+    """With floor_y the same scene raised by 5 cm (dough on a board instead of the table) gives the same output; without
+    it the height is an input."""
+    torch.manual_seed(0)
+    dough, tool, goal = torch.rand(2, 30, 3) * 0.1, torch.rand(2, 10, 3) * 0.1 + 0.05, torch.rand(2, 30, 3) * 0.1
+    pose = torch.cat([tool.mean(1), torch.tensor([[1.0, 0, 0, 0]] * 2)], -1)
+    up = torch.tensor([0.0, 0.05, 0.0])
+    raised = [x + up for x in (dough, tool, goal)]
+    raised_pose = pose.clone()
+    raised_pose[:, :3] += up
+    outputs = {}
+    for floor in (True, False):
+        net = PolicyNet(PolicyConfig(action_dim=2, floor_y=floor, step_feature=False, **TINY)).eval()
+        with torch.no_grad():
+            net.action_head[-1].weight.normal_(0, 1.0)
+            outputs[floor] = (net(dough, tool, goal, None, pose)[0], net(*raised, None, raised_pose)[0])
+    torch.testing.assert_close(*outputs[True], atol=1e-5, rtol=1e-5)
+    assert not torch.allclose(*outputs[False], atol=1e-4)
+    assert PolicyConfig.from_dict({k: v for k, v in PolicyConfig(**TINY).to_dict().items() if k != "floor_y"}).floor_y is False
