@@ -99,13 +99,16 @@ class PolicyConfig:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PolicyConfig:
-        """The config :meth:`to_dict` wrote; every key must be there (no defaults for missing ones) except
-        ``action_feature`` and ``floor_y`` (off when absent).
+        """The config :meth:`to_dict` wrote; every key must be there (no defaults for missing ones).
 
         Raises:
             ConfigError: a key is missing or unknown."""
-        # checkpoints written before the previous-action input (2026-12-06) lack its switch: it was off
-        d = {"action_feature": False, "floor_y": False, **d}
+        if "action_feature" not in d and "floor_y" not in d and "goal_feature" in d:
+            from pasta.core.errors import ConfigError
+
+            raise ConfigError("policy network config lacks action_feature and floor_y: it was written by a pasta "
+                              "before 2026-12-06; retrain it, or add \"action_feature\": false, \"floor_y\": false "
+                              "to its network config (the policy had neither input)")
         _check_keys("policy network", d, cls.__dataclass_fields__)
         enc = dict(d["encoder"])
         _check_keys("policy network encoder", enc, ("in_features", "pos_scale", "global_widths", "levels"))

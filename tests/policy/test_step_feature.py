@@ -257,7 +257,9 @@ def test_previous_action_learns_what_one_frame_and_no_step_cannot_tell(tmp_path)
         loaded.net(*(torch.as_tensor(x[None]) for x in (blob, tool, blob)))
     old = loaded.config.to_dict()
     old.pop("action_feature")
-    assert PolicyConfig.from_dict(old).action_feature is False
+    old.pop("floor_y")
+    with pytest.raises(ConfigError, match="lacks action_feature and floor_y: it was written by a pasta before 2026-12-06"):
+        PolicyConfig.from_dict(old)
 
 
 def test_floor_y_measures_heights_from_the_dough_bottom():
@@ -278,4 +280,5 @@ def test_floor_y_measures_heights_from_the_dough_bottom():
             outputs[floor] = (net(dough, tool, goal, None, pose)[0], net(*raised, None, raised_pose)[0])
     torch.testing.assert_close(*outputs[True], atol=1e-5, rtol=1e-5)
     assert not torch.allclose(*outputs[False], atol=1e-4)
-    assert PolicyConfig.from_dict({k: v for k, v in PolicyConfig(**TINY).to_dict().items() if k != "floor_y"}).floor_y is False
+    with pytest.raises(ConfigError, match="lacks floor_y"):
+        PolicyConfig.from_dict({k: v for k, v in PolicyConfig(**TINY).to_dict().items() if k != "floor_y"})
