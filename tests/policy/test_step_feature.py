@@ -33,6 +33,18 @@ def _frozen_demo(path, steps=8, points=40, seed=0):
     return blob, tool, action
 
 
+def _replay(policy, blob, tool, steps):
+    """The actions ``policy``'s controller takes on ``steps`` identical frames of ``blob`` (a push policy)."""
+
+    class _Push:
+        name = "push"
+
+    ctl = policy.controller(_Push())
+    obs = SkillObservation(piece=blob, goal=blob, tool_points=tool, tool_pose=np.zeros(7, np.float32))
+    ctl.reset(obs)
+    return np.stack([ctl.act(obs)[0] for _ in range(steps)])
+
+
 def test_configs_round_trip_and_a_missing_key_is_an_error():
     on = PolicyConfig(action_dim=2, step_feature=True, step_scale=30.0, **TINY)
     assert PolicyConfig.from_dict(on.to_dict()) == on
@@ -90,14 +102,7 @@ def test_step_feature_learns_an_action_one_frame_cannot_tell(tmp_path):
     loaded = LearnedPolicy.load(tmp_path / "out", "push")
     assert loaded.config.step_feature and loaded.config.step_scale == 2.0
 
-    class _Push:
-        name = "push"
-
-    ctl = loaded.controller(_Push())
-    obs = SkillObservation(piece=blob, goal=blob, tool_points=tool, tool_pose=np.zeros(7, np.float32))
-    ctl.reset(obs)
-    acts = np.stack([ctl.act(obs)[0] for _ in range(len(action))])
-    err = np.abs(acts - action)
+    err = np.abs(_replay(loaded, blob, tool, len(action)) - action)
     assert err.max() < 0.5 and err.mean() < 0.25  # a one-frame policy: the same output for all steps, error 0.8
 
 
@@ -244,14 +249,7 @@ def test_previous_action_learns_what_one_frame_and_no_step_cannot_tell(tmp_path)
     loaded = LearnedPolicy.load(tmp_path / "out", "push")
     assert loaded.config.action_feature and loaded.config.aux_dim == 2
 
-    class _Push:
-        name = "push"
-
-    ctl = loaded.controller(_Push())
-    obs = SkillObservation(piece=blob, goal=blob, tool_points=tool, tool_pose=np.zeros(7, np.float32))
-    ctl.reset(obs)
-    acts = np.stack([ctl.act(obs)[0] for _ in range(len(action))])
-    err = np.abs(acts - action)
+    err = np.abs(_replay(loaded, blob, tool, len(action)) - action)
     assert err.max() < 0.3  # a one-frame policy outputs one action for all steps: error 0.6 on half of them
     with pytest.raises(ValueError, match="previous action"):
         loaded.net(*(torch.as_tensor(x[None]) for x in (blob, tool, blob)))
