@@ -21,7 +21,7 @@ from pasta.core.errors import (
 )
 from pasta.core.matching import min_cost_matching
 from pasta.core.plan import Plan, PlanStep, kept_indices
-from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons
+from pasta.core.planner import Planner, PlanningProblem, check_skeleton, enumerate_skeletons, toward_goal
 from pasta.core.scene import Scene, SceneNeeds
 from pasta.core.skill import Controller, DemoVariant, Skill, SkillObservation, SkillSpec, ToolPose
 from pasta.core.step import StepMonitor, Stop, stop_reason
@@ -63,4 +63,5 @@ __all__ = [
     "kept_indices",
     "min_cost_matching",
     "stop_reason",
+    "toward_goal",
 ]

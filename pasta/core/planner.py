@@ -118,8 +118,8 @@ class PlanningProblem:
 def enumerate_skeletons(specs: Sequence[SkillSpec], horizon: int, k_obs: int, k_goal: int) -> list[tuple[str, ...]]:
     """Every skill sequence of length ``horizon`` that turns ``k_obs`` entities into ``k_goal``.
 
-    A sequence is kept when ``sum(M_k - N_k) == k_goal - k_obs`` and every step has enough entities to
-    consume. Order: lexicographic in the order of ``specs``.
+    A sequence is kept when ``sum(M_k - N_k) == k_goal - k_obs``, every step has enough entities to consume and
+    the count moves only toward ``k_goal`` without passing it (:func:`toward_goal`). Order: lexicographic in the order of ``specs``.
 
     Raises:
         CardinalityError: no sequence qualifies; the message names both counts and the cardinalities.
@@ -136,17 +136,28 @@ def enumerate_skeletons(specs: Sequence[SkillSpec], horizon: int, k_obs: int, k_
 def check_skeleton(skeleton: Sequence[str], specs: Sequence[SkillSpec], k_obs: int, k_goal: int) -> None:
     """Raise :class:`CardinalityError` if ``skeleton`` cannot turn ``k_obs`` entities into ``k_goal``."""
     by_name = {s.name: s for s in specs}
-    if not _reachable([by_name[n] for n in skeleton], k_obs, k_goal):
+    if not _reachable([by_name[n] for n in skeleton], k_obs, k_goal, monotone=False):
         raise CardinalityError(
             f"skeleton {list(skeleton)} cannot turn {k_obs} observed entities into {k_goal} goal entities; "
             + _cardinalities(specs)
         )
 
 
-def _reachable(seq: Sequence[SkillSpec], k_obs: int, k_goal: int) -> bool:
+def toward_goal(k: int, delta: int, k_goal: int) -> bool:
+    """A step changing the entity count ``k`` by ``delta`` moves it toward ``k_goal`` without passing it (or keeps
+    it): the searched
+    sequences never cut a piece only to join it again, nor join pieces only to cut them apart, so a skill that
+    joins pieces widens no search of a task whose count only grows."""
+    return delta == 0 or (delta > 0 and k + delta <= k_goal) or (delta < 0 and k + delta >= k_goal)
+
+
+def _reachable(seq: Sequence[SkillSpec], k_obs: int, k_goal: int, monotone: bool = True) -> bool:
+    """``seq`` turns ``k_obs`` entities into ``k_goal`` and every step has the entities it consumes; with
+    ``monotone`` (searched sequences, not a skeleton the user gave) every step moves the count toward the goal's
+    (:func:`toward_goal`)."""
     k = k_obs
     for s in seq:
-        if k < s.n_in:
+        if k < s.n_in or (monotone and not toward_goal(k, s.delta, k_goal)):
             return False
         k += s.delta
     return k == k_goal

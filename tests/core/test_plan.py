@@ -1,7 +1,7 @@
 import pytest
 import torch
 
-from pasta.core import CardinalityError, InputError, Plan, SkillSpec, enumerate_skeletons, kept_indices
+from pasta.core import CardinalityError, InputError, Plan, SkillSpec, check_skeleton, enumerate_skeletons, kept_indices
 from pasta.testing import ReferencePlanner, analytic_problem
 
 CUT, PUSH, ROLL = SkillSpec("cut", 1, 2, "knife"), SkillSpec("push", 1, 1, "pusher"), SkillSpec("roll", 1, 1, "roller")
@@ -15,7 +15,18 @@ def test_crs_enumeration_keeps_the_twelve_sequences_with_one_cut():
 
 def test_enumeration_respects_entities_available():
     merge = SkillSpec("merge", 2, 1, "gripper")
-    assert enumerate_skeletons([merge, CUT], 2, 1, 1) == [("cut", "merge")]
+    assert enumerate_skeletons([merge, CUT, PUSH], 2, 3, 2) == [("merge", "push"), ("push", "merge")]
+
+
+def test_enumeration_moves_the_count_only_toward_the_goal():
+    """No searched sequence cuts a piece only to join it again (or joins pieces only to cut them): a join
+    skill adds no sequence to a task whose count only grows, and a given skeleton may still do so."""
+    merge = SkillSpec("merge", 2, 1, "gripper")
+    assert enumerate_skeletons([CUT, PUSH, ROLL, merge], 3, 1, 2) == enumerate_skeletons([CUT, PUSH, ROLL], 3, 1, 2)
+    with pytest.raises(CardinalityError):
+        enumerate_skeletons([merge, CUT], 2, 1, 1)  # cut then merge: back where it started
+    assert ("cut", "merge", "cut") not in enumerate_skeletons([merge, CUT, PUSH], 3, 1, 2)
+    check_skeleton(("cut", "merge"), [CUT, merge], 1, 1)  # a skeleton the user gives is only count-checked
 
 
 def test_cardinality_error_names_counts_and_cardinalities():

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 import torch
 
-from pasta.core import CardinalityError, Plan, PlanningProblem, check_skeleton, kept_indices
+from pasta.core import CardinalityError, Plan, PlanningProblem, check_skeleton, kept_indices, toward_goal
 from pasta.planning import FLOOR, LatentPlanner, SearchResult, search
 from pasta.planning.batch import free_feasible
 from pasta_planner_prefix_beam.config import PrefixBeamConfig
@@ -166,7 +166,7 @@ class PrefixBeamPlanner(LatentPlanner):
             """Can ``k`` entities become ``k_goal`` in exactly ``steps`` steps?"""
             if steps == 0:
                 return k == k_goal
-            return any(k >= s.n_in and reaches(k + s.delta, steps - 1) for s in specs)
+            return any(k >= s.n_in and toward_goal(k, s.delta, k_goal) and reaches(k + s.delta, steps - 1) for s in specs)
 
         def can_finish(k: int, left: int) -> bool:
             return reaches(k, left) if exact else any(reaches(k, j) for j in range(left + 1))
@@ -188,7 +188,8 @@ class PrefixBeamPlanner(LatentPlanner):
             lo = max(0, depth - int(cfg.window))
             for parent in beam:
                 k = parent.states[-1].shape[0]
-                names = [sp.name for sp in specs if k >= sp.n_in and can_finish(k + sp.delta, horizon - depth)]
+                names = [sp.name for sp in specs
+                         if k >= sp.n_in and toward_goal(k, sp.delta, k_goal) and can_finish(k + sp.delta, horizon - depth)]
                 if not names:
                     continue
                 # one search for all children of this parent: they share the start set parent.states[lo]
