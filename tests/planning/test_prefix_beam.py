@@ -132,3 +132,31 @@ def test_polish_stops_at_a_local_optimum():
     assert len(rounds) < 50  # ended because the best two had no unsearched neighbour left
     scores = [r["score"] for r in rounds]
     assert scores == sorted(scores)  # the best found never gets worse
+
+
+def test_no_searched_sequence_joins_what_it_cut():
+    """With a 2 -> 1 skill among the candidates, a problem whose count only grows (1 -> 2) searches the same
+    sequences as without it, in prefix_beam and exhaustive alike (the count moves only toward the goal's)."""
+    import dataclasses
+
+    import torch
+
+    from pasta.core import PlanningProblem, SkillSpec
+    from pasta.testing._analytic import MoveSkill
+
+    class MergeSkill(MoveSkill):
+        spec = SkillSpec("merge", 2, 1, "hand", "analytic test skill: two pieces into one")
+
+        def feasibility(self, u_in, u_out):
+            self._check_tuple(u_in, u_out)
+            return torch.exp(-(u_out[:, 0, :2] - u_in[:, 0, :2]).pow(2).sum(-1))
+
+    base = analytic_problem(horizon=3)
+    problem = PlanningProblem(base.obs, base.goal, [*base.skills, MergeSkill()], base.encoder, base.cost,
+                              horizon=3, seed=base.seed)
+    assert problem.skeletons() == base.skeletons()
+    plan = _planner(final=50).plan(problem)
+    assert all("merge" not in row["skills"] for row in plan.info["per_sequence"])
+    shrink = dataclasses.replace(problem, obs=base.goal, goal=base.obs, horizon=1)  # 2 -> 1: the merge alone
+    assert shrink.skeletons() == [("merge",)]
+    assert _planner().plan(shrink).skills == ("merge",)
