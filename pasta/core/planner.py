@@ -119,7 +119,8 @@ def enumerate_skeletons(specs: Sequence[SkillSpec], horizon: int, k_obs: int, k_
     """Every skill sequence of length ``horizon`` that turns ``k_obs`` entities into ``k_goal``.
 
     A sequence is kept when ``sum(M_k - N_k) == k_goal - k_obs``, every step has enough entities to consume and
-    the count moves only toward ``k_goal`` without passing it (:func:`toward_goal`). Order: lexicographic in the order of ``specs``.
+    the count moves only toward ``k_goal`` without passing it (:func:`toward_goal`). Order: lexicographic in the
+    order of ``specs``.
 
     Raises:
         CardinalityError: no sequence qualifies; the message names both counts and the cardinalities.
@@ -145,9 +146,8 @@ def check_skeleton(skeleton: Sequence[str], specs: Sequence[SkillSpec], k_obs: i
 
 def toward_goal(k: int, delta: int, k_goal: int) -> bool:
     """A step changing the entity count ``k`` by ``delta`` moves it toward ``k_goal`` without passing it (or keeps
-    it): the searched
-    sequences never cut a piece only to join it again, nor join pieces only to cut them apart, so a skill that
-    joins pieces widens no search of a task whose count only grows."""
+    it). The searched sequences never cut a piece only to join it again, nor join pieces only to cut them apart,
+    so a skill that joins pieces widens no search of a task whose count only grows."""
     return delta == 0 or (delta > 0 and k + delta <= k_goal) or (delta < 0 and k + delta >= k_goal)
 
 
@@ -168,8 +168,12 @@ def _cardinalities(specs: Sequence[SkillSpec]) -> str:
 
 
 def _cardinality_message(specs: Sequence[SkillSpec], horizon: int, k_obs: int, k_goal: int) -> str:
+    detour = ""
+    if any(_reachable(seq, k_obs, k_goal, monotone=False) for seq in itertools.product(specs, repeat=horizon)):
+        detour = (" (only by a detour: the searched sequences move the count toward the goal's, never away or past "
+                  "it; give the skeleton to plan one)")
     return (
-        f"no sequence of {horizon} skills turns {k_obs} observed entities into {k_goal} goal entities; "
+        f"no sequence of {horizon} skills turns {k_obs} observed entities into {k_goal} goal entities{detour}; "
         f"{_cardinalities(specs)}. Try another horizon or a skill with the missing cardinality."
     )
 
