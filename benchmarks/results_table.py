@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from typing import NamedTuple
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -295,6 +296,54 @@ def _footnoted(lines: list[str]) -> str:
                   "ones (the row's `weights` digests), or with a skill among the candidates that the task's scene now "
                   "leaves out (docs/planning.md, \"The scene\")."]
     return "\n".join(lines) + "\n"
+
+
+class Row(NamedTuple):
+    """One row the tables cite: the file stem under docs/results and the command that makes it."""
+
+    name: str
+    #: ``pasta eval`` settings (``task=crs num=20 ...``), or the arguments of ``script``
+    settings: tuple[str, ...]
+    configs: int = 20
+    #: a script that makes the row instead of ``pasta eval`` (SAC-Point); empty for ``pasta eval``
+    script: str = ""
+    #: a skill that must be registered for the row (the example plugin's rows), else empty
+    needs: str = ""
+
+
+def rows() -> list[Row]:
+    """Every row of every block (:data:`BLOCKS`), once each, in the order the tables show them."""
+    found: dict[str, Row] = {}
+
+    def add(row: Row) -> None:
+        found.setdefault(row.name, row)
+
+    def learned(flag: bool) -> tuple[str, ...]:
+        return ("execute.controller=learned",) if flag else ()
+
+    for task, _, _ in TASKS:
+        for flag in (False, True):
+            add(Row(result_name(task, *(["learned"] if flag else [])), (f"task={task}", "num=20", *learned(flag))))
+    for task, _, name, settings, _ in ABLATIONS:
+        words = tuple(settings.split())
+        if words[0].endswith(".py"):
+            add(Row(name, words[1:], script=words[0]))
+        else:
+            add(Row(name, (f"task={task}", "num=20", *words)))
+    for (task, _), name in zip(TRAJOPT, trajopt_names()):
+        add(Row(name, (f"task={task}", "method=trajopt", f"num={TRAJOPT_CONFIGS}"), configs=TRAJOPT_CONFIGS))
+    for task in LOOP_TASKS:
+        for kind in DISTURBANCES:
+            for flag in (False, True):
+                for closed in (False, True):
+                    add(Row(loop_name(task, kind, learned=flag, closed=closed),
+                            (f"task={task}", "num=20", *learned(flag), *([f"disturb={kind}"] if kind else []),
+                             *(["execute.loop=closed"] if closed else []))))
+    for task, _, _ in TASKS:
+        for flag in (False, True):
+            add(Row(plugin_name(task, learned=flag), (f"task={task}", "num=20", *learned(flag), f"models={PLUGIN[2]}"),
+                    needs=PLUGIN[1]))
+    return list(found.values())
 
 
 #: each block: the file that shows it (relative to the checkout) and what prints it
