@@ -9,7 +9,8 @@ For a change that moves the simulator's floats (docs/simulator.md, "Benchmark"):
 (:func:`results_table.rows`) is made again by the command that made it, into OUT. ``run`` is resumable: a row
 whose summary is in OUT is skipped, and ``pasta eval`` resumes a half-written row episode by episode, so the same
 command continues after an interruption. ``--jobs`` rows run at once, each on one thread (``threads=1``), with
-their output in OUT/logs. ``compare`` prints, per row, the successes and mean normalised improvement before and
+their output in OUT/logs; the commands run in this checkout, so its code makes the rows (run the script of the
+checkout under test). ``compare`` prints, per row, the successes and mean normalised improvement before and
 after, and exits 1 when a row lost more than one success (the bar a simulator change must pass, issue 44); rows
 not made yet are counted, not compared.
 """
@@ -65,6 +66,18 @@ def collect(row: Row, out: Path) -> None:
         shutil.copyfile(folder / "episodes.jsonl", out / f"{row.name}.jsonl")
 
 
+def checkout_commit() -> str:
+    """The commit of the checkout that makes the rows, with ``+changes`` when its tree differs from it."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True, text=True,
+                              check=True).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=ROOT, capture_output=True,
+                               text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown (not a git checkout)"
+    return head + ("+changes" if dirty else "")
+
+
 def missing_plugin(row: Row) -> str:
     """Why ``row`` cannot run in this environment (its skill plugin is not installed), or empty."""
     if not row.needs:
@@ -99,6 +112,8 @@ def cmd_list(args: argparse.Namespace) -> int:
 def cmd_run(args: argparse.Namespace) -> int:
     out = args.out.resolve()
     (out / LOGS).mkdir(parents=True, exist_ok=True)
+    print(f"rows made by the pasta of {ROOT} (the commands run there: its checkout is imported first), "
+          f"commit {checkout_commit()}", flush=True)
     todo = []
     for row in select(args.only):
         why = missing_plugin(row)
