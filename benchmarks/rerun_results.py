@@ -25,6 +25,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import IO
 
 from results_table import RESULTS, ROOT, Row, rows
 
@@ -124,7 +125,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         else:
             todo.append(row)
     expected = {row.name: last_seconds(row) for row in todo}  # None: no record (SAC-Point's training)
-    running: dict[str, tuple[subprocess.Popen, float, Row]] = {}
+    running: dict[str, tuple[subprocess.Popen, float, Row, IO[bytes]]] = {}
     failed: list[str] = []
     done_old = done_new = 0.0
     start = time.monotonic()
@@ -132,15 +133,16 @@ def cmd_run(args: argparse.Namespace) -> int:
     while queue or running:
         while queue and len(running) < args.jobs:
             row = queue.pop(0)
-            log = (out / LOGS / f"{row.name}.log").open("a")
+            log = (out / LOGS / f"{row.name}.log").open("ab")
             running[row.name] = (subprocess.Popen(command(row, out), cwd=ROOT, stdout=log, stderr=subprocess.STDOUT),
-                                 time.monotonic(), row)
+                                 time.monotonic(), row, log)
             print(f"started {row.name}", flush=True)
         time.sleep(args.poll)
-        for name, (proc, began, row) in list(running.items()):
+        for name, (proc, began, row, log) in list(running.items()):
             if proc.poll() is None:
                 continue
             del running[name]
+            log.close()
             if proc.returncode == 0:
                 collect(row, out)
             made = summary(out, row)
@@ -154,7 +156,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"finished {name}: {successes(made)}/{made['episodes']} successes, "
                   f"{(time.monotonic() - began) / 60:.1f} min; {len(todo) - len(queue) - len(running) - len(failed)}"
                   f"/{len(todo)} rows, {(time.monotonic() - start) / 60:.0f} min so far"
-                  + eta([*queue, *(r for _, _, r in running.values())], expected, done_new / done_old if done_old else 1.0,
+                  + eta([*queue, *(r for _, _, r, _ in running.values())], expected, done_new / done_old if done_old else 1.0,
                         args.jobs), flush=True)
     if failed:
         print(f"{len(failed)} rows failed: {', '.join(failed)} (the same command resumes them)")
