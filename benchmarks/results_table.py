@@ -17,8 +17,8 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from typing import NamedTuple
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"
