@@ -159,10 +159,9 @@ def other_weights(summary: dict) -> list[str]:
 def outside_scene(summary: dict) -> list[str]:
     """The skills of ``summary``'s recorded skill set that its task's scene does not allow (pasta.tasks.scene): a
     row run before pasta fitted the skills to the scene, to be re-run."""
+    from pasta.plugins import get_plugins
     from pasta.tasks import get_task
     from pasta.tasks.scene import floor_height, resolve_scene, scene_fit
-
-    from pasta.plugins import get_plugins
 
     if not summary.get("skills"):  # a method that plans no skills (SAC-Point)
         return []
