@@ -27,7 +27,7 @@ import time
 from pathlib import Path
 from typing import IO
 
-from results_table import RESULTS, ROOT, Row, rows
+from results_table import PLUGIN, RESULTS, ROOT, Row, _rows, rows
 
 #: where a row's command writes its output inside OUT (SAC-Point trains into a folder of its own)
 LOGS = "logs"
@@ -44,10 +44,9 @@ def summary(folder: Path, row: Row) -> dict | None:
 
 def last_seconds(row: Row) -> float | None:
     """Wall seconds of the row's episodes in docs/results (None when they were not recorded)."""
-    path = RESULTS / f"{row.name}.jsonl"
-    if not path.exists():
+    if not (RESULTS / f"{row.name}.jsonl").exists():
         return None
-    seconds = [json.loads(line).get("wall_s") for line in path.read_text().splitlines() if line.strip()]
+    seconds = [episode.get("wall_s") for episode in _rows(RESULTS, row.name)]
     return float(sum(seconds)) if seconds and all(s is not None for s in seconds) else None
 
 
@@ -68,7 +67,9 @@ def collect(row: Row, out: Path) -> None:
 
 
 def checkout_commit() -> str:
-    """The commit of the checkout that makes the rows, with ``+changes`` when its tree differs from it."""
+    """The commit of the checkout that makes the rows, with ``+changes`` when its tree differs from it. (Not
+    ``pasta.io.provenance``'s commit: that is of the pasta this process imports, which may be another checkout's
+    editable install.)"""
     try:
         head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True, text=True,
                               check=True).stdout.strip()
@@ -87,7 +88,7 @@ def missing_plugin(row: Row) -> str:
 
     if row.needs in get_plugins().skills:
         return ""
-    return f"needs the `{row.needs}` skill: pip install -e examples/pasta-{row.needs}"
+    return f"needs the `{row.needs}` skill: pip install -e examples/{PLUGIN[0]}"
 
 
 def select(patterns: list[str] | None) -> list[Row]:
