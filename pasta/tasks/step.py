@@ -104,7 +104,10 @@ class GoalMonitor(StepMonitor):
       gets worse. A piece that started within ``near`` of its goal counts as having made progress from
       the first step, so moving away from the goal ends the step at once. Neither applies while the skill
       calls the piece unfinished (:meth:`~pasta.core.Skill.unfinished`): a roll's passes leave the dough
-      lopsided until the next pass evens it, and a cube lies within ``near`` of the sheet it must become;
+      lopsided until the next pass evens it, and a cube lies within ``near`` of the sheet it must become.
+      A piece the skill called unfinished at the start is judged from the first env step it no longer
+      does, as if it started there: within ``near`` of its goal then, moving away ends the step (a learned
+      roll that goes on rolling a sheet already as long as its goal spreads it past the goal);
     - when it says it is at its own step cap (:attr:`~pasta.core.Stop.CAP`), runs on for at most
       ``overrun`` more env steps while every one of them brings the piece closer than it has been: the
       caps were chosen on single-skill configs, and a cut that must carry its piece further than any
@@ -131,7 +134,7 @@ class GoalMonitor(StepMonitor):
         self._goal: np.ndarray | None = None
         self._watch = False
         self._limit = 0
-        self._near = self.near
+        self._start: float | None = None
         self._unfinished: Callable[[np.ndarray], bool] | None = None
 
     def _subset(self, cloud: np.ndarray) -> np.ndarray:
@@ -156,10 +159,12 @@ class GoalMonitor(StepMonitor):
               unfinished: Callable[[np.ndarray], bool] | None = None) -> None:
         self._limit = int(limit)
         self._unfinished = unfinished if watch else None
-        self._near = 0.0 if self._unfinished is not None and self._unfinished(piece) else self.near
         self._watch = bool(watch) and goal is not None
         self._goal = self._subset(goal) if self._watch and goal is not None else None
         self.initial = self.best = self._measure(piece) if self._watch else 0.0
+        # where the piece counts as starting for the `near` test: now, or (unfinished now) the first env step
+        # the skill no longer calls it unfinished (None until then)
+        self._start = None if self._unfinished is not None and self._unfinished(piece) else self.initial
         self.above = 0  # env steps in a row above the regression band
         self.overran = 0  # env steps run past the controller's cap
 
@@ -171,9 +176,13 @@ class GoalMonitor(StepMonitor):
         d = self._measure(piece)
         closer = d < self.best
         self.best = min(self.best, d)
-        progressed = self.best < self.progress * self.initial or self.initial < self._near
+        unfinished = self._unfinished is not None and self._unfinished(piece)
+        if self._start is None and not unfinished:
+            self._start = self.best
+        near = self._start is not None and self._start < self.near
+        progressed = self.best < self.progress * self.initial or near
         self.above = self.above + 1 if progressed and d > self.best * (1.0 + self.rise) else 0
-        regressed = self.above >= self.patience and not (self._unfinished is not None and self._unfinished(piece))
+        regressed = self.above >= self.patience and not unfinished
         return regressed, closer
 
     def should_stop(self, piece: np.ndarray, said: Stop | None, steps: int) -> Stop | None:

@@ -151,6 +151,30 @@ def test_a_piece_its_skill_calls_unfinished_is_not_stopped_as_regressed():
     assert _measure(m, goal, path[4:]) == [None, None, None, Stop.REGRESSED]
 
 
+def test_a_piece_its_skill_no_longer_calls_unfinished_counts_as_starting_there():
+    """The `near` test of a piece the skill called unfinished at the start waits for the first env step it no
+    longer does: within ``near`` of the goal then, moving away ends the step (a learned roll that goes on rolling a
+    sheet already as long as its goal); farther than ``near`` then, only real progress counts, as before."""
+    goal = np.zeros((10, 3), np.float32)
+    closes_in = [0.03, 0.015]  # Chamfer 1.8e-3, 4.5e-4: still unfinished
+    then = [0.015, 0.03, 0.03, 0.03]  # no longer unfinished, within near (1e-3), then moves away
+    for finished_at, expected in ((2, [None] * 5 + [Stop.REGRESSED]), (None, [None] * 6)):
+        steps = {"n": 0}
+
+        def unfinished(piece, finished_at=finished_at, steps=steps):
+            steps["n"] += 1
+            return finished_at is None or steps["n"] <= finished_at
+
+        m = GoalMonitor(rise=0.5, patience=3, progress=0.01, near=0.001)  # progress: only `near` can count
+        m.begin(goal + np.float32([0.04, 0, 0]), goal, limit=100, watch=True, unfinished=lambda piece: True)
+        m._unfinished = unfinished  # the skill's verdict per env step from here
+        assert _measure(m, goal, closes_in + then) == expected, finished_at
+    # no longer unfinished while still far from the goal: the start is there, not within near; no stop
+    m = GoalMonitor(rise=0.5, patience=3, progress=0.01, near=0.001)
+    m.begin(goal + np.float32([0.04, 0, 0]), goal, limit=100, watch=True, unfinished=lambda piece: False)
+    assert _measure(m, goal, [0.03, 0.05, 0.05, 0.05]) == [None] * 4
+
+
 class _CappedLeft(Controller):
     """Pushes left at full speed and says it is at its cap after ``cap`` actions, as a learned policy does at
     its ``max_steps``."""
@@ -233,6 +257,13 @@ def test_a_skill_says_how_close_is_at_its_goal():
     sheet = rng.uniform(0, 1, (800, 3)) * (0.17, 0.018, 0.075) + (0.215, 0.07, 0.4625)
     rolled = sheet * (1, 1.1, 1) - (0, 0.007, 0)  # 10 % thicker: a roll would only spread it
     assert roll.unfinished(cube, sheet) and not roll.unfinished(rolled, sheet) and not roll.unfinished(sheet, sheet)
+    # a piece twice as thick as the sheet but as long: a roll would spread it past the sheet's ends, not thin it
+    slab = sheet * (1, 2.5, 1) - (0, 0.105, 0)
+    assert not roll.unfinished(slab, sheet) and roll.unfinished(slab * (0.8, 1, 1) + (0.05, 0, 0), sheet)
+    # measured along the goal's main axis: the same sheet and slabs turned to lie along z
+    short = slab * (0.8, 1, 1) + (0.05, 0, 0)
+    xz = [2, 1, 0]
+    assert not roll.unfinished(slab[:, xz], sheet[:, xz]) and roll.unfinished(short[:, xz], sheet[:, xz])
     assert not skills.create("push").unfinished(cube, sheet)  # the default: the distance decides
 
 
