@@ -53,15 +53,6 @@ def thickness(points: np.ndarray) -> float:
     return float(hi - lo)
 
 
-def span(points: np.ndarray, yaw: float) -> float:
-    """Length of ``points (P, 3)`` along the rolling direction of ``yaw`` (:func:`main_yaw`'s convention):
-    99th minus 1st percentile of the points projected on it."""
-    p = np.asarray(points, np.float64)
-    along = p[:, 0] * math.cos(yaw) - p[:, 2] * math.sin(yaw)
-    lo, hi = np.percentile(along, [1, 99])
-    return float(hi - lo)
-
-
 def main_yaw(points: np.ndarray, min_elongation: float) -> float:
     """Yaw whose rolling direction is the main horizontal axis of ``points``, in (-pi/2, pi/2]; 0 unless
     the cloud is ``min_elongation`` times longer than wide."""
@@ -192,15 +183,9 @@ class RollSkill(Skill):
         return int(self.config.max_steps)
 
     def unfinished(self, piece: np.ndarray, goal: np.ndarray) -> bool:
-        """A roll still flattens the piece, however close it lies to the goal by Chamfer distance: it is more
-        than :attr:`unfinished_margin` thicker than the goal and shorter than the goal along the rolling
-        direction (:func:`span`). A roll thins dough by lengthening it: a piece already as long as its goal,
-        however thick, is only spread past the goal by more rolling."""
-        piece, goal = as_points(piece, "piece"), as_points(goal, "goal")
-        if thickness(piece) <= thickness(goal) + self.unfinished_margin:
-            return False
-        yaw = main_yaw(goal, self.config.min_elongation)
-        return span(piece, yaw) < span(goal, yaw)
+        """The piece is more than :attr:`unfinished_margin` thicker than the goal: a roll still flattens it,
+        however close the two are by Chamfer distance."""
+        return thickness(as_points(piece, "piece")) > thickness(as_points(goal, "goal")) + self.unfinished_margin
 
     def approach_pose(self, piece: np.ndarray, goal: np.ndarray | None = None, scene: np.ndarray | None = None) -> ToolPose:
         """Roller above the piece centroid, its bottom ``clearance`` above the piece top, turned to the
