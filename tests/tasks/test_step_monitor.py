@@ -125,8 +125,9 @@ def test_progress_sets_how_close_a_step_must_come_before_it_is_watched():
 
 
 def test_a_piece_near_its_goal_that_its_skill_calls_unfinished_may_first_move_away():
-    """Within ``near`` of the goal a step counts as having made progress from the start, so moving away ends it;
-    a piece its skill calls unfinished (a cube to be rolled into a sheet) gets the ordinary watch instead."""
+    """Within ``near`` of the goal a step counts as having made progress from the start, so moving away from its
+    best ends it; a piece its skill calls unfinished (a cube to be rolled into a sheet) is watched against where
+    the step found it instead."""
     goal = np.zeros((10, 3), np.float32)
     # starts at Chamfer 2 * 0.02^2 = 8e-4, closes in to 4.5e-4, moves away to 9.7e-4 (above 1.5x the best, below
     # 1.5x the start), closes in again
@@ -152,7 +153,8 @@ def test_a_piece_its_skill_calls_unfinished_is_stopped_once_farther_than_it_star
 
 def test_a_piece_its_skill_calls_unfinished_is_not_stopped_as_regressed():
     """A roll's pass leaves the dough lopsided (farther from the goal) until the next pass: while the skill says the
-    piece still needs it (thicker than the goal), moving away does not end the step; once it is finished, it does."""
+    piece still needs it (thicker than the goal), moving away from its best (not past where it started) does not
+    end the step; once it is finished, it does."""
     goal = np.zeros((10, 3), np.float32)
     path = [0.1, 0.2, 0.2, 0.2, 0.1, 0.2, 0.2, 0.2]
     thick = {"now": True}
@@ -165,22 +167,18 @@ def test_a_piece_its_skill_calls_unfinished_is_not_stopped_as_regressed():
 
 def test_a_piece_its_skill_no_longer_calls_unfinished_counts_as_starting_there():
     """The `near` test of a piece the skill called unfinished at the start waits for the first env step it no
-    longer does: within ``near`` of the goal then, moving away ends the step (a learned roll that goes on rolling a
-    sheet already as long as its goal); farther than ``near`` then, only real progress counts, as before."""
+    longer does: within ``near`` of the goal then, moving away ends the step (a learned roll that goes on rolling
+    a sheet already as thin as its goal); farther than ``near`` then, only real progress counts, as before."""
     goal = np.zeros((10, 3), np.float32)
     closes_in = [0.03, 0.015]  # Chamfer 1.8e-3, 4.5e-4: still unfinished
-    then = [0.015, 0.03, 0.03, 0.03]  # no longer unfinished, within near (1e-3), then moves away
-    for finished_at, expected in ((2, [None] * 5 + [Stop.REGRESSED]), (None, [None] * 6)):
-        steps = {"n": 0}
-
-        def unfinished(piece, finished_at=finished_at, steps=steps):
-            steps["n"] += 1
-            return finished_at is None or steps["n"] <= finished_at
-
+    then = [0.015, 0.03, 0.03, 0.03]  # within near (1e-3), then moves away (still within 1.5x the start, 3.2e-3)
+    for finished, expected in ((True, [None, None, None, Stop.REGRESSED]), (False, [None] * 4)):
+        thick = {"now": True}
         m = GoalMonitor(rise=0.5, patience=3, progress=0.01, near=0.001)  # progress: only `near` can count
-        m.begin(goal + np.float32([0.04, 0, 0]), goal, limit=100, watch=True, unfinished=lambda piece: True)
-        m._unfinished = unfinished  # the skill's verdict per env step from here
-        assert _measure(m, goal, closes_in + then) == expected, finished_at
+        m.begin(goal + np.float32([0.04, 0, 0]), goal, limit=100, watch=True, unfinished=lambda piece: thick["now"])
+        assert _measure(m, goal, closes_in) == [None, None]
+        thick["now"] = not finished
+        assert _measure(m, goal, then) == expected, finished
     # no longer unfinished while still far from the goal: the start is there, not within near; no stop
     m = GoalMonitor(rise=0.5, patience=3, progress=0.01, near=0.001)
     m.begin(goal + np.float32([0.04, 0, 0]), goal, limit=100, watch=True, unfinished=lambda piece: False)
