@@ -28,12 +28,15 @@ import numpy as np
 import torch
 from torch import nn
 
-__all__ = ["MODULE", "NAME", "ResetConfig", "ResetPose", "ResetPoseNet", "load_reset", "piece_shares", "reset_inputs",
-           "x_at_share"]
+__all__ = ["MODULE", "NAME", "ResetConfig", "ResetPose", "ResetPoseNet", "goal_labels", "left_piece_share", "load_reset", "piece_shares",
+           "reset_inputs", "x_at_share"]
 
 #: units of a regressed share (``x_share``): shares spread about 4x as wide as offsets in 5 cm units, so the
 #: loss weighs both outputs of the cut's (share, phase) as it did (plane, phase)
 SHARE_SCALE = 0.2
+#: config keys added after checkpoints were written without them, with the value that reads those checkpoints
+#: as they were trained
+ADDED_KEYS = {"share_prior": False}
 #: checkpoint module (and file) name of a reset-pose regressor
 MODULE = "reset_pose"
 NAME = "reset"
@@ -52,7 +55,10 @@ class ResetConfig:
     ``x_share``: the first value is not an ``x`` offset in metres but the share of the piece's points whose
     ``x`` lies below it (0-1), read back as that quantile of the observed piece's ``x``: a mass fraction carries
     over to pieces and cuts longer than the demonstrations' (the cut's plane from the goal pieces' point
-    shares; docs/policies.md, "crs_twice with learned policies: the fix")."""
+    shares; docs/policies.md, "crs_twice with learned policies: the fix"); ``share_prior`` (with ``x_share``):
+    the network regresses that share's difference from the goal's leftmost piece's share of the goal's points
+    (:func:`left_piece_share`), so a piece unlike the demonstrations' (two pieces pressed together, a crease)
+    does not move the plane the goal's masses fix (docs/policies.md, "The plane's prior")."""
 
     points: int = 512
     widths: list[int] = field(default_factory=lambda: [64, 128, 256])
@@ -64,15 +70,18 @@ class ResetConfig:
     outputs: int = 1
     piece_share: bool = False
     x_share: bool = False
+    share_prior: bool = False
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
-        """The config a checkpoint wrote (``asdict``); every key must be there (no defaults for missing ones).
+        """The config a checkpoint wrote (``asdict``); every key must be there (no defaults for missing ones),
+        except the :data:`ADDED_KEYS` an older checkpoint lacks.
 
         Raises:
             ConfigError: a key is missing or unknown."""
         from pasta.policy.network import _check_keys
 
+        d = {**ADDED_KEYS, **d}
         _check_keys("reset pose network", d, cls.__dataclass_fields__)
         return cls(**d)
 
@@ -117,21 +126,38 @@ class ResetPoseNet(nn.Module):
         return self.head(torch.cat(pooled, -1)) * self.units
 
 
-def piece_shares(goal: np.ndarray) -> np.ndarray:
-    """``(G,)``: for every point of ``goal (G, 3)`` its piece's share of the goal's points (DBSCAN pieces,
-    :func:`pasta.core.decompose.decompose_labels`). Point counts are masses for an observed cloud, and
-    the executor's goal masses make them so for a plan's sub-goals."""
+def goal_labels(goal: np.ndarray) -> np.ndarray:
+    """``(G,)``: the piece of every point of ``goal (G, 3)`` (:func:`pasta.core.decompose.decompose_labels`:
+    DBSCAN pieces, ordered by centroid ``x``)."""
     from pasta.core.decompose import decompose_labels
 
-    labels = decompose_labels(goal)
+    return decompose_labels(goal)
+
+
+def piece_shares(goal: np.ndarray, labels: np.ndarray | None = None) -> np.ndarray:
+    """``(G,)``: for every point of ``goal (G, 3)`` its piece's share of the goal's points (``labels``, default
+    :func:`goal_labels`). Point counts are masses for an observed cloud, and the executor's goal masses make
+    them so for a plan's sub-goals."""
+    labels = goal_labels(goal) if labels is None else labels
     return (np.bincount(labels)[labels] / len(goal)).astype(np.float32)
 
 
+def left_piece_share(goal: np.ndarray, labels: np.ndarray | None = None) -> float:
+    """The goal's leftmost piece's share of its points (``labels``, default :func:`goal_labels`, number the
+    pieces by centroid ``x``): for a cut whose plane is ``x = const``, the share of the piece's points that
+    must lie left of the plane, as dough keeps its mass. 0.5 when the goal shows one piece (it says nothing
+    of the split)."""
+    labels = goal_labels(goal) if labels is None else np.asarray(labels)
+    if len(labels) == 0 or labels.max() < 1:
+        return 0.5
+    return float(np.mean(labels == 0))
+
+
 def reset_inputs(dough: np.ndarray, goal: np.ndarray, n: int, rng: np.random.Generator,
-                 piece_share: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                 piece_share: bool = False, labels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(2n, 4)`` network input (``n`` points of each, centred on the dough centroid in ``x, z``, and a
-    source channel), ``(2n, 5)`` with ``piece_share`` (the goal points' :func:`piece_shares`, 0 for the
-    dough), and the centroid ``(3,)``."""
+    source channel), ``(2n, 5)`` with ``piece_share`` (the goal points' :func:`piece_shares` by ``labels``,
+    default :func:`goal_labels`; 0 for the dough), and the centroid ``(3,)``."""
     dough = np.asarray(dough, np.float32)
     goal = np.asarray(goal, np.float32)
     c = dough.mean(0)
@@ -142,7 +168,7 @@ def reset_inputs(dough: np.ndarray, goal: np.ndarray, n: int, rng: np.random.Gen
     cols_d, cols_g = [np.zeros((n, 1), np.float32)], [np.ones((n, 1), np.float32)]
     if piece_share:
         cols_d.append(np.zeros((n, 1), np.float32))
-        cols_g.append(piece_shares(goal)[gi, None])
+        cols_g.append(piece_shares(goal, labels)[gi, None])
     pts = np.concatenate([np.concatenate([d, *cols_d], 1), np.concatenate([g, *cols_g], 1)], 0)
     return pts, c
 
@@ -177,13 +203,18 @@ class ResetPose:
 
     @torch.no_grad()
     def predict(self, piece: np.ndarray, goal: np.ndarray) -> np.ndarray:
-        """The regressed values ``(R,)`` (the first an offset from the piece centroid ``x``); the mean over
-        ``cfg.draws`` subsamples (seeds ``seed``, ``seed + 1``, ...)."""
+        """The regressed values ``(R,)`` (the first an offset from the piece centroid ``x``, or a share; with
+        ``share_prior`` the goal's :func:`left_piece_share` added back); the mean over ``cfg.draws``
+        subsamples (seeds ``seed``, ``seed + 1``, ...)."""
         draws = max(1, int(self.net.cfg.draws))
         cfg = self.net.cfg
-        pts = [reset_inputs(piece, goal, cfg.points, np.random.default_rng(self.seed + i), cfg.piece_share)[0]
+        labels = goal_labels(goal) if cfg.piece_share or cfg.share_prior else None
+        pts = [reset_inputs(piece, goal, cfg.points, np.random.default_rng(self.seed + i), cfg.piece_share, labels)[0]
                for i in range(draws)]
-        return self.net(torch.as_tensor(np.stack(pts))).mean(0).numpy().astype(np.float64)
+        y = self.net(torch.as_tensor(np.stack(pts))).mean(0).numpy().astype(np.float64)
+        if cfg.share_prior:
+            y[0] += left_piece_share(goal, labels)
+        return y
 
     def offset(self, piece: np.ndarray, goal: np.ndarray) -> float:
         """The predicted offset ``x`` (metres) from the piece centroid (:meth:`predict`'s first value, turned

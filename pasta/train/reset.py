@@ -23,7 +23,7 @@ from torch import nn
 
 from pasta.core.errors import ConfigError
 from pasta.core.files import write_json
-from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, reset_inputs, x_at_share
+from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, goal_labels, left_piece_share, reset_inputs, x_at_share
 from pasta.train.decoded import check_encoder_weights, decoded_pieces, goal_draw, load_encoder
 from pasta.train.loop import LoopConfig, fit, numpy_rng, torch_threads
 
@@ -65,16 +65,22 @@ def _dataset(demos: Sequence[Any], skill: Any = None, x_share: bool = False) -> 
 
 def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: float,
            decoded: Sequence[Any] | None = None, p_decoded: float = 0.0,
-           piece_share: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+           piece_share: bool = False, share_prior: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+    """Inputs and targets of ``items``; with ``share_prior`` the first target less the goal's
+    :func:`left_piece_share` (of the goal as drawn: a decoded goal's pieces keep their shares)."""
     xs, ys = [], []
     for i, (dough, goal, off, _) in enumerate(items):
         if decoded is not None:
             goal = goal_draw(goal, decoded[i], p_decoded, rng)
-        pts, _ = reset_inputs(dough, goal, n, rng, piece_share)
+        labels = goal_labels(goal) if piece_share or share_prior else None
+        pts, _ = reset_inputs(dough, goal, n, rng, piece_share, labels)
         if noise > 0:
             pts[:, :3] += rng.uniform(-noise, noise, pts[:, :3].shape).astype(np.float32)
         xs.append(pts)
-        ys.append(off)
+        y = np.array(off, np.float64)
+        if share_prior:
+            y[0] -= left_piece_share(goal, labels)
+        ys.append(y)
     return torch.as_tensor(np.stack(xs)), torch.as_tensor(np.stack(ys).astype(np.float32))
 
 
@@ -129,7 +135,9 @@ class ResetTask:
         torch.manual_seed(seed)
         self.model = ResetPoseNet(cfg)
         self.val_x, self.val_y = _batch(self.val_items, cfg.points, np.random.default_rng(seed + 1), 0.0,
-                                        piece_share=cfg.piece_share)
+                                        piece_share=cfg.piece_share, share_prior=cfg.share_prior)
+        # what a share_prior regressor's first output is added to (the held-out goals are never decoded)
+        self.val_prior = np.array([left_piece_share(t[1]) if cfg.share_prior else 0.0 for t in self.val_items])
 
     def config(self) -> dict[str, Any]:
         return {"skill": self.skill_name, "network": asdict(self.cfg)}
@@ -141,7 +149,7 @@ class ResetTask:
             idx = order[i:i + batch_size]
             yield _batch([self.train_items[j] for j in idx], self.cfg.points, rng, self.noise,
                          None if self.decoded is None else [self.decoded[j] for j in idx], self.decoded_goals,
-                         self.cfg.piece_share)
+                         self.cfg.piece_share, self.cfg.share_prior)
 
     def loss(self, batch: tuple[torch.Tensor, torch.Tensor], generator: torch.Generator) -> torch.Tensor:
         x, y = batch
@@ -159,11 +167,16 @@ class ResetTask:
         ``x`` the skill places from it; shares are turned into metres on each held-out dough."""
         self.model.eval()
         pred = self.model(self.val_x).numpy().astype(np.float64)
-        vy = self.val_y.numpy()
+        vy = self.val_y.numpy().astype(np.float64)
+        pred[:, 0] += self.val_prior
+        vy[:, 0] += self.val_prior
+        prior = self.val_prior.copy()  # the goal's split alone (share_prior), as a share
         if self.cfg.x_share:  # shares -> offsets in metres on each held-out dough
             for i, (dough, _, _, _) in enumerate(self.val_items):
-                pred[i, 0] = x_at_share(dough, pred[i, 0]) - float(np.asarray(dough, np.float64)[:, 0].mean())
-            vy = np.stack([t[2] for t in self.val_metres]).astype(np.float32)
+                c = float(np.asarray(dough, np.float64)[:, 0].mean())
+                pred[i, 0] = x_at_share(dough, pred[i, 0]) - c
+                prior[i] = x_at_share(dough, prior[i]) - c
+            vy = np.stack([t[2] for t in self.val_metres]).astype(np.float64)
         errs = np.abs(pred - vy)
         err = errs[:, 0]
         metrics: dict[str, Any] = {
@@ -171,6 +184,8 @@ class ResetTask:
             "heldout_mae_m": float(err.mean()), "heldout_median_ae_m": float(np.median(err)),
             "heldout_max_ae_m": float(err.max()), "target_std_m": float(np.std([t[2][0] for t in self.val_metres])),
             "demo_align_steps_median": float(np.median([t[3] for t in self.train_items]))}
+        if self.cfg.share_prior:  # what the network adds to the goal's split
+            metrics["heldout_prior_mae_m"] = float(np.abs(prior - vy[:, 0]).mean())
         if self.cfg.outputs > 1:  # the unitless values (the cut: the knife's phase in its cell)
             metrics["heldout_mae_other"] = [float(v) for v in errs[:, 1:].mean(0)]
         if self.own is not None:  # what the tool does with it: the skill's tool x against the demos' own
@@ -220,6 +235,8 @@ class ResetTrainConfig:
         decoded_noise: std of Gaussian noise on the shape code of those reconstructions (4 per piece).
         piece_share: every goal point also carries its piece's share of the goal's points (an input).
         x_share: regress the first value as the share of the dough's points below it (:class:`ResetConfig`).
+        share_prior: with ``x_share``, regress that share's difference from the goal's leftmost piece's share
+            (:class:`ResetConfig`).
         encoder_weights: the VAE directory for ``decoded_goals`` (empty: the shipped VAE).
     """
 
@@ -233,6 +250,7 @@ class ResetTrainConfig:
     decoded_noise: float = 0.5
     piece_share: bool = True
     x_share: bool = True
+    share_prior: bool = True
     encoder_weights: str = ""
 
     def __post_init__(self) -> None:
@@ -241,6 +259,9 @@ class ResetTrainConfig:
 
         if self.target not in ("tool", "skill"):
             raise ConfigError(f"target must be tool or skill, got {self.target!r}")
+        if self.share_prior and not self.x_share:
+            raise ConfigError("share_prior=true needs x_share=true (the prior is a share of the goal's points); "
+                              "set share_prior=false to regress the plane without it")
         check_ranges(self, {"noise": (0.0, None), "val_fraction": (0.0, 1.0, "[)"), "start_step": (0, None),
                             "points": (1, MAX_POINTS), "draws": (1, 10_000), "decoded_goals": (0.0, 1.0),
                             "decoded_noise": (0.0, None)})
@@ -276,7 +297,8 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
         train, val = split_by_demo(demos, val_fraction=cfg.val_fraction, seed=loop.seed)
         outputs = len(skill_obj.reset_target(0.5)) if cfg.target == "skill" else 1
         net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws, target=cfg.target,
-                              outputs=outputs, piece_share=cfg.piece_share, x_share=cfg.x_share)
+                              outputs=outputs, piece_share=cfg.piece_share, x_share=cfg.x_share,
+                              share_prior=cfg.share_prior)
         encoder = None
         if cfg.decoded_goals > 0:
             encoder = load_encoder(cfg.encoder_weights)

@@ -11,7 +11,7 @@ from pasta.io.checkpoint import save_checkpoint
 from pasta.policy.learned import LearnedPolicy, PolicyController
 from pasta.policy.network import PolicyConfig, PolicyNet
 from pasta.policy.pointnet2 import PointNet2Config, SAConfig
-from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, load_reset
+from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPose, ResetPoseNet, load_reset, reset_inputs
 from pasta.train.loop import LoopConfig
 from pasta.train.reset import align_offset, train_reset
 from pasta.demos.data import Demo
@@ -79,6 +79,57 @@ def test_share_regressor_overfits_a_tiny_set_and_reads_back_metres(tmp_path):
     # the tool x is that quantile of the piece's x: the same share of a longer piece lands further along it
     longer = d.dough[0] * np.float32([2.0, 1.0, 1.0])
     assert np.isclose(reset.tool_x(_Skill(), longer, d.after), np.quantile(longer[:, 0], np.clip(reset.predict(longer, d.after)[0], 0, 1)))
+
+
+def test_share_prior_regressor_learns_the_difference_from_the_goals_left_piece_share(tmp_path):
+    from pasta.policy.reset import left_piece_share
+
+    rng = np.random.default_rng(0)
+    demos = [_cut_demo(i, rng, points=200)[0] for i in range(6)]
+    cfg = ResetConfig(points=64, widths=[32, 64], head=[64], x_share=True, piece_share=True, share_prior=True)
+    net, metrics = train_reset(demos, [], cfg, out=tmp_path / "fit", loop=_loop(300, 6, 3e-3), noise=0.0)
+    assert metrics["heldout_mae_m"] < 0.004, metrics
+    assert metrics["heldout_prior_mae_m"] < 0.004, metrics  # the goal's split alone: the bar keeps its mass
+    save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": vars(cfg)})
+    reset = load_reset(tmp_path)
+    d = demos[0]
+    with torch.no_grad():
+        raw = reset.net(torch.as_tensor(np.stack([reset_inputs(d.dough[0], d.after, 64, np.random.default_rng(0), True)[0]])))
+    prior = left_piece_share(d.after)
+    assert np.isclose(reset.predict(d.dough[0], d.after)[0], float(raw[0, 0]) + prior, atol=1e-6)  # the prior added back
+    assert abs(float(raw[0, 0])) < 0.05  # the network's part is a small correction
+    assert abs(reset.offset(d.dough[0], d.after) - align_offset(d)[0]) < 0.01
+
+
+def test_left_piece_share_is_the_leftmost_pieces_share_and_a_half_for_one_piece():
+    from pasta.policy.reset import left_piece_share
+
+    left = np.c_[np.linspace(0.30, 0.38, 30), np.full(30, 0.02), np.full(30, 0.5)]
+    right = np.c_[np.linspace(0.50, 0.68, 70), np.full(70, 0.02), np.full(70, 0.5)]
+    assert np.isclose(left_piece_share(np.concatenate([right, left])), 0.3)  # by centroid x, not by order
+    assert left_piece_share(right) == 0.5  # one piece says nothing of the split
+
+
+def test_a_checkpoint_written_before_share_prior_loads_without_it(tmp_path):
+    cfg = vars(ResetConfig(points=16, widths=[16], head=[16], x_share=True)).copy()
+    del cfg["share_prior"]
+    net = ResetPoseNet(ResetConfig(**cfg))
+    save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": cfg})
+    assert load_reset(tmp_path).net.cfg.share_prior is False
+    cfg["shar_prior"] = True  # any other missing or unknown key is still an error
+    save_checkpoint(tmp_path, module=MODULE, name=NAME, tensors=net.state_dict(), config={"skill": "cut", "network": cfg})
+    with pytest.raises(Exception, match="shar_prior"):
+        load_reset(tmp_path)
+
+
+def test_share_prior_needs_x_share():
+    from pasta.core.errors import ConfigError
+    from pasta.train.reset import reset_configs
+
+    assert reset_configs({})[1].share_prior  # the shipped regressor's
+    with pytest.raises(ConfigError, match="share_prior=true needs x_share=true"):
+        reset_configs({"x_share": False})
+    assert not reset_configs({"x_share": False, "share_prior": False})[1].x_share
 
 
 class _Skill:
