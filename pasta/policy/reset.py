@@ -72,6 +72,12 @@ class ResetConfig:
     x_share: bool = False
     share_prior: bool = False
 
+    def __post_init__(self) -> None:
+        if self.share_prior and not self.x_share:
+            from pasta.core.errors import ConfigError
+
+            raise ConfigError("reset pose network: share_prior needs x_share (the prior is a share of the goal's points)")
+
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ResetConfig:
         """The config a checkpoint wrote (``asdict``); every key must be there (no defaults for missing ones),

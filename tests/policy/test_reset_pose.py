@@ -129,6 +129,8 @@ def test_share_prior_needs_x_share():
     assert reset_configs({})[1].share_prior  # the shipped regressor's
     with pytest.raises(ConfigError, match="share_prior=true needs x_share=true"):
         reset_configs({"x_share": False})
+    with pytest.raises(ConfigError, match="share_prior needs x_share"):
+        ResetConfig(share_prior=True)
     assert not reset_configs({"x_share": False, "share_prior": False})[1].x_share
 
 
