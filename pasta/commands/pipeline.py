@@ -63,8 +63,8 @@ per-skill ones come from each skill plugin's training_defaults and demo_variants
                          push and lift: goal_feature=true; lift: decoded_goals=0.5 decoded_noise=0.5
                          decoded_shift=0.03; roll: action_feature=true floor_y=true
   reset/cut              pasta train reset threads=1 (epochs 90, start_step 0, points 1000) target=skill
-                         piece_share=true x_share=true share_prior=true decoded_goals=0.5
-                         decoded_noise=0.5                      -> OUT/policy/cut/reset.* (+ reset_metrics.json)
+                         piece_share=true x_share=true decoded_goals=0.5 decoded_noise=0.5
+                                                                -> OUT/policy/cut/reset.* (+ reset_metrics.json)
   select/<skill>         pasta train select n=20 seed=2000 write=true threads=1 (validation
                          configs; the rule goes into OUT/policy/<skill>/model.json, the per-config
                          results into select.json); cut thresholds=0.3,...,0.7

@@ -28,7 +28,9 @@ import numpy as np
 import torch
 from torch import nn
 
-__all__ = ["MODULE", "NAME", "ResetConfig", "ResetPose", "ResetPoseNet", "goal_labels", "left_piece_share", "load_reset", "piece_shares",
+from pasta.core.decompose import decompose_labels
+
+__all__ = ["MODULE", "NAME", "ResetConfig", "ResetPose", "ResetPoseNet", "left_piece_share", "load_reset", "piece_shares",
            "reset_inputs", "x_at_share"]
 
 #: units of a regressed share (``x_share``): shares spread about 4x as wide as offsets in 5 cm units, so the
@@ -132,28 +134,20 @@ class ResetPoseNet(nn.Module):
         return self.head(torch.cat(pooled, -1)) * self.units
 
 
-def goal_labels(goal: np.ndarray) -> np.ndarray:
-    """``(G,)``: the piece of every point of ``goal (G, 3)`` (:func:`pasta.core.decompose.decompose_labels`:
-    DBSCAN pieces, ordered by centroid ``x``)."""
-    from pasta.core.decompose import decompose_labels
-
-    return decompose_labels(goal)
-
-
 def piece_shares(goal: np.ndarray, labels: np.ndarray | None = None) -> np.ndarray:
     """``(G,)``: for every point of ``goal (G, 3)`` its piece's share of the goal's points (``labels``, default
-    :func:`goal_labels`). Point counts are masses for an observed cloud, and the executor's goal masses make
+    :func:`pasta.core.decompose.decompose_labels`: DBSCAN pieces, ordered by centroid ``x``). Point counts are masses for an observed cloud, and the executor's goal masses make
     them so for a plan's sub-goals."""
-    labels = goal_labels(goal) if labels is None else labels
+    labels = decompose_labels(goal) if labels is None else labels
     return (np.bincount(labels)[labels] / len(goal)).astype(np.float32)
 
 
 def left_piece_share(goal: np.ndarray, labels: np.ndarray | None = None) -> float:
-    """The goal's leftmost piece's share of its points (``labels``, default :func:`goal_labels`, number the
+    """The goal's leftmost piece's share of its points (``labels``, default :func:`~pasta.core.decompose.decompose_labels`, number the
     pieces by centroid ``x``): for a cut whose plane is ``x = const``, the share of the piece's points that
     must lie left of the plane, as dough keeps its mass. 0.5 when the goal shows one piece (it says nothing
     of the split)."""
-    labels = goal_labels(goal) if labels is None else np.asarray(labels)
+    labels = decompose_labels(goal) if labels is None else np.asarray(labels)
     if len(labels) == 0 or labels.max() < 1:
         return 0.5
     return float(np.mean(labels == 0))
@@ -163,7 +157,7 @@ def reset_inputs(dough: np.ndarray, goal: np.ndarray, n: int, rng: np.random.Gen
                  piece_share: bool = False, labels: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(2n, 4)`` network input (``n`` points of each, centred on the dough centroid in ``x, z``, and a
     source channel), ``(2n, 5)`` with ``piece_share`` (the goal points' :func:`piece_shares` by ``labels``,
-    default :func:`goal_labels`; 0 for the dough), and the centroid ``(3,)``."""
+    default :func:`~pasta.core.decompose.decompose_labels`; 0 for the dough), and the centroid ``(3,)``."""
     dough = np.asarray(dough, np.float32)
     goal = np.asarray(goal, np.float32)
     c = dough.mean(0)
@@ -214,7 +208,7 @@ class ResetPose:
         subsamples (seeds ``seed``, ``seed + 1``, ...)."""
         draws = max(1, int(self.net.cfg.draws))
         cfg = self.net.cfg
-        labels = goal_labels(goal) if cfg.piece_share or cfg.share_prior else None
+        labels = decompose_labels(goal) if cfg.piece_share or cfg.share_prior else None
         pts = [reset_inputs(piece, goal, cfg.points, np.random.default_rng(self.seed + i), cfg.piece_share, labels)[0]
                for i in range(draws)]
         y = self.net(torch.as_tensor(np.stack(pts))).mean(0).numpy().astype(np.float64)

@@ -21,9 +21,10 @@ import numpy as np
 import torch
 from torch import nn
 
+from pasta.core.decompose import decompose_labels
 from pasta.core.errors import ConfigError
 from pasta.core.files import write_json
-from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, goal_labels, left_piece_share, reset_inputs, x_at_share
+from pasta.policy.reset import MODULE, NAME, ResetConfig, ResetPoseNet, left_piece_share, reset_inputs, x_at_share
 from pasta.train.decoded import check_encoder_weights, decoded_pieces, goal_draw, load_encoder
 from pasta.train.loop import LoopConfig, fit, numpy_rng, torch_threads
 
@@ -72,7 +73,7 @@ def _batch(items: Sequence[tuple], n: int, rng: np.random.Generator, noise: floa
     for i, (dough, goal, off, _) in enumerate(items):
         if decoded is not None:
             goal = goal_draw(goal, decoded[i], p_decoded, rng)
-        labels = goal_labels(goal) if piece_share or share_prior else None
+        labels = decompose_labels(goal) if piece_share or share_prior else None
         pts, _ = reset_inputs(dough, goal, n, rng, piece_share, labels)
         if noise > 0:
             pts[:, :3] += rng.uniform(-noise, noise, pts[:, :3].shape).astype(np.float32)
@@ -234,9 +235,8 @@ class ResetTrainConfig:
             reconstruction (``encoder_weights``; empty: the shipped VAE), as at execution.
         decoded_noise: std of Gaussian noise on the shape code of those reconstructions (4 per piece).
         piece_share: every goal point also carries its piece's share of the goal's points (an input).
-        x_share: regress the first value as the share of the dough's points below it (:class:`ResetConfig`).
-        share_prior: with ``x_share``, regress that share's difference from the goal's leftmost piece's share
-            (:class:`ResetConfig`).
+        x_share: regress the first value as the share of the dough's points below it, as its difference from
+            the goal's leftmost piece's share (``ResetConfig.x_share`` and ``share_prior``: the plane's prior).
         encoder_weights: the VAE directory for ``decoded_goals`` (empty: the shipped VAE).
     """
 
@@ -250,7 +250,6 @@ class ResetTrainConfig:
     decoded_noise: float = 0.5
     piece_share: bool = True
     x_share: bool = True
-    share_prior: bool = True
     encoder_weights: str = ""
 
     def __post_init__(self) -> None:
@@ -259,9 +258,6 @@ class ResetTrainConfig:
 
         if self.target not in ("tool", "skill"):
             raise ConfigError(f"target must be tool or skill, got {self.target!r}")
-        if self.share_prior and not self.x_share:
-            raise ConfigError("share_prior=true needs x_share=true (the prior is a share of the goal's points); "
-                              "set share_prior=false to regress the plane without it")
         check_ranges(self, {"noise": (0.0, None), "val_fraction": (0.0, 1.0, "[)"), "start_step": (0, None),
                             "points": (1, MAX_POINTS), "draws": (1, 10_000), "decoded_goals": (0.0, 1.0),
                             "decoded_noise": (0.0, None)})
@@ -298,7 +294,7 @@ def reset_command(data: str | Path, out: str | Path, skill: str,
         outputs = len(skill_obj.reset_target(0.5)) if cfg.target == "skill" else 1
         net_cfg = ResetConfig(start_step=cfg.start_step, points=cfg.points, draws=cfg.draws, target=cfg.target,
                               outputs=outputs, piece_share=cfg.piece_share, x_share=cfg.x_share,
-                              share_prior=cfg.share_prior)
+                              share_prior=cfg.x_share)
         encoder = None
         if cfg.decoded_goals > 0:
             encoder = load_encoder(cfg.encoder_weights)

@@ -126,12 +126,11 @@ def test_share_prior_needs_x_share():
     from pasta.core.errors import ConfigError
     from pasta.train.reset import reset_configs
 
-    assert reset_configs({})[1].share_prior  # the shipped regressor's
-    with pytest.raises(ConfigError, match="share_prior=true needs x_share=true"):
-        reset_configs({"x_share": False})
+    assert reset_configs({})[1].x_share  # the shipped regressor's: a share, with the prior (no switch of its own)
+    with pytest.raises(ConfigError, match="share_prior"):
+        reset_configs({"share_prior": False})
     with pytest.raises(ConfigError, match="share_prior needs x_share"):
         ResetConfig(share_prior=True)
-    assert not reset_configs({"x_share": False, "share_prior": False})[1].x_share
 
 
 class _Skill:
