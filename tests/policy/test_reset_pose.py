@@ -131,6 +131,7 @@ def test_share_prior_needs_x_share():
         reset_configs({"share_prior": False})
     with pytest.raises(ConfigError, match="share_prior needs x_share"):
         ResetConfig(share_prior=True)
+    assert not reset_configs({"x_share": False})[1].x_share  # an offset regressor, without the prior
 
 
 class _Skill:
